@@ -1,0 +1,25 @@
+"""workbench: identify and propagate the variability of bolted joints in light assembled frames.
+
+The method is that of Ghienne, Laurent & Blanze, "Robust characterization of the vibrational
+behaviour of light assembled structures with random parameters", MSSP 136 (2020) 106510.
+"""
+
+from .assembly import Model, assemble
+from .frame import Frame, FrameFileError, read_frame, write_frame
+from .modal import FRFSet, Modes, frame_frf, mac, model_modes, solve_modes
+
+__all__ = [
+    "Frame",
+    "FrameFileError",
+    "read_frame",
+    "write_frame",
+    "Model",
+    "assemble",
+    "Modes",
+    "FRFSet",
+    "solve_modes",
+    "model_modes",
+    "mac",
+    "frame_frf",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,288 @@
+"""Meshing and assembly: global mass, rest stiffness and joint-zone stiffnesses of a frame.
+
+The stiffness is split as in the paper, eq. (3)-(4):
+
+    K(gamma) = K_rest + sum_j gamma_j K_j,
+
+where ``K_j`` is the stiffness of joint ``j``'s zone at the joint's mean modulus, so that
+``gamma_j = Y_j / E[Y_j]`` is the normalised random modulus of eq. (8)-(9) and ``gamma = 1`` is the
+nominal model. Supports that are ``fixed`` remove their dof; every other matrix is on the free dofs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import elements
+from .frame import DOF_NAMES, Frame, locate_point, member_length
+
+__all__ = ["Mesh", "Model", "mesh_frame", "assemble", "geometric_stiffness"]
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """Finite-element mesh of a frame.
+
+    Attributes
+    ----------
+    node_xy : (n_nodes, 2) node coordinates, m.
+    connectivity : (n_elements, 2) node indices of each element, from the member's start to its end.
+    element_member : (n_elements,) index of the element's member in ``frame.members``.
+    element_joint : (n_elements,) index in ``frame.joints`` of the joint zone holding the element, or -1.
+    point_node : node index of every named point.
+    """
+
+    node_xy: np.ndarray
+    connectivity: np.ndarray
+    element_member: np.ndarray
+    element_joint: np.ndarray
+    point_node: dict[str, int]
+
+    @property
+    def dof_count(self) -> int:
+        return 3 * len(self.node_xy)
+
+    def element_lengths(self) -> np.ndarray:
+        d = np.diff(self.node_xy[self.connectivity], axis=1)[:, 0]
+        return np.hypot(d[:, 0], d[:, 1])
+
+
+@dataclass(frozen=True)
+class Model:
+    """Assembled matrices of a frame on its free dofs (fixed support dofs removed).
+
+    Attributes
+    ----------
+    frame, mesh : what was assembled.
+    mass : (n, n) sparse mass matrix, kg.
+    stiffness_rest : (n, n) sparse stiffness outside the joint zones, supports springs, grounded
+        springs and the geometric stiffness of member axial forces, N/m.
+    stiffness_joints : one (n, n) sparse matrix per joint of ``frame.joints``, at its mean modulus.
+    free_dofs : (n,) global dof number (3 * node + {0: ux, 1: uy, 2: rz}) of each free dof.
+    """
+
+    frame: Frame
+    mesh: Mesh
+    mass: sp.csr_matrix
+    stiffness_rest: sp.csr_matrix
+    stiffness_joints: tuple[sp.csr_matrix, ...]
+    free_dofs: np.ndarray
+    _position: np.ndarray = field(repr=False, compare=False, default=None)
+
+    def __post_init__(self) -> None:
+        position = np.full(self.mesh.dof_count, -1)
+        position[self.free_dofs] = np.arange(self.free_dofs.size)
+        object.__setattr__(self, "_position", position)
+
+    @property
+    def size(self) -> int:
+        return int(self.free_dofs.size)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.frame.joint_names
+
+    def stiffness(self, gamma: np.ndarray | None = None) -> sp.csr_matrix:
+        """``K(gamma) = K_rest + sum_j gamma_j K_j`` (eq. 4); ``gamma = None`` means all ones."""
+        if gamma is None:
+            gamma = np.ones(len(self.stiffness_joints))
+        gamma = np.asarray(gamma, float)
+        if gamma.shape != (len(self.stiffness_joints),):
+            raise ValueError(f"gamma: expected {len(self.stiffness_joints)} values (one per joint "
+                             f"{list(self.joint_names)}), got shape {gamma.shape}")
+        if not np.all(np.isfinite(gamma)) or np.any(gamma <= 0):
+            raise ValueError(f"gamma: joint moduli must be finite and positive, got {gamma}")
+        k = self.stiffness_rest.copy()
+        for g, kj in zip(gamma, self.stiffness_joints):
+            k = k + g * kj
+        return k.tocsr()
+
+    def dof(self, point: str, dof: str) -> int:
+        """Index in the free-dof system of ``dof`` (ux, uy, rz) at the named ``point``."""
+        if point not in self.mesh.point_node:
+            raise KeyError(f"{self.frame.source}: no point named {point!r}")
+        index = self._position[3 * self.mesh.point_node[point] + DOF_NAMES.index(dof)]
+        if index < 0:
+            raise ValueError(f"{self.frame.source}: {dof} at point {point!r} is a fixed support dof")
+        return int(index)
+
+    def expand(self, vectors: np.ndarray) -> np.ndarray:
+        """Free-dof vectors (n, ...) to all dofs (3 * n_nodes, ...), zero on fixed dofs."""
+        out = np.zeros((self.mesh.dof_count,) + vectors.shape[1:], dtype=vectors.dtype)
+        out[self.free_dofs] = vectors
+        return out
+
+
+def mesh_frame(frame: Frame) -> Mesh:
+    """Mesh every member into elements no longer than ``frame.element_length``.
+
+    Nodes are placed at the member's ends, at every named point lying on it (so members meeting
+    there are rigidly connected) and at joint span ends, then each interval is divided evenly.
+    """
+    node_xy: list[tuple[float, float]] = []
+    point_node: dict[str, int] = {}
+    for name, xy in frame.points.items():
+        point_node[name] = len(node_xy)
+        node_xy.append(xy)
+
+    conn, elem_member, elem_joint = [], [], []
+    for mi, member in enumerate(frame.members):
+        length = member_length(frame, member)
+        x0 = np.array(frame.points[member.start])
+        direction = (np.array(frame.points[member.end]) - x0) / length
+        # (station along the member, node or None for a new node)
+        stations: list[tuple[float, int | None]] = []
+        for name, xy in frame.points.items():
+            s = locate_point(frame.points, member, xy)
+            if s is not None:
+                stations.append((s, point_node[name]))
+        zones = [(ji, j) for ji, j in enumerate(frame.joints) if j.member == member.name]
+        for _, joint in zones:
+            stations.extend((s, None) for s in joint.span)
+        stations.sort(key=lambda t: (t[0], t[1] is None))
+        merged: list[tuple[float, int | None]] = []
+        for s, node in stations:
+            if merged and s - merged[-1][0] <= 1e-9 * max(length, 1.0):
+                continue  # a named point wins over a span end at the same place
+            merged.append((s, node))
+        previous = None
+        for s, node in merged:
+            if node is None:
+                node = len(node_xy)
+                node_xy.append(tuple(x0 + s * direction))
+            if previous is not None:
+                s_prev, n_prev = previous
+                count = max(1, math.ceil((s - s_prev) / frame.element_length - 1e-9))
+                chain = [n_prev]
+                for k in range(1, count):
+                    chain.append(len(node_xy))
+                    node_xy.append(tuple(x0 + (s_prev + (s - s_prev) * k / count) * direction))
+                chain.append(node)
+                mid = s_prev + (s - s_prev) * (np.arange(count) + 0.5) / count
+                owner = np.full(count, -1)
+                for ji, joint in zones:
+                    owner[(mid > joint.span[0]) & (mid < joint.span[1])] = ji
+                conn.extend(zip(chain[:-1], chain[1:]))
+                elem_member.extend([mi] * count)
+                elem_joint.extend(owner.tolist())
+            previous = (s, node)
+    return Mesh(np.array(node_xy, float), np.array(conn, int), np.array(elem_member, int),
+                np.array(elem_joint, int), point_node)
+
+
+def _element_properties(frame: Frame, mesh: Mesh) -> dict[str, np.ndarray]:
+    members = frame.members
+    mats = [frame.materials[m.material] for m in members]
+    secs = [frame.sections[m.section] for m in members]
+    em = mesh.element_member
+    prop = {
+        "E": np.array([m.youngs_modulus for m in mats])[em],
+        "rho": np.array([m.density for m in mats])[em],
+        "A": np.array([s.area for s in secs])[em],
+        "I": np.array([s.second_moment for s in secs])[em],
+        "N": np.array([m.axial_force for m in members])[em],
+    }
+    joint_e = np.array([j.youngs_modulus for j in frame.joints] + [np.nan])
+    in_joint = mesh.element_joint >= 0
+    prop["E"] = np.where(in_joint, joint_e[mesh.element_joint], prop["E"])
+    if frame.beam_theory == "timoshenko":
+        prop["nu"] = np.array([m.poisson_ratio for m in mats])[em]
+        prop["kappa"] = np.array([s.shear_coefficient for s in secs])[em]
+    return prop
+
+
+def _global_element_matrices(frame: Frame, mesh: Mesh):
+    d = np.diff(mesh.node_xy[mesh.connectivity], axis=1)[:, 0]
+    length = np.hypot(d[:, 0], d[:, 1])
+    t = elements.rotation(d[:, 0] / length, d[:, 1] / length)
+    p = _element_properties(frame, mesh)
+    timoshenko = frame.beam_theory == "timoshenko"
+    phi = (elements.shear_parameter(length, p["I"], p["A"], p["kappa"], p["nu"])
+           if timoshenko else np.zeros_like(length))
+    k = elements.to_global(elements.stiffness_local(length, p["E"], p["A"], p["I"], phi), t)
+    m = elements.to_global(elements.mass_local(length, p["rho"], p["A"], p["I"], phi, timoshenko), t)
+    return k, m, length, t, p
+
+
+def _element_dofs(mesh: Mesh) -> np.ndarray:
+    n = mesh.connectivity
+    return np.concatenate([3 * n[:, :1] + np.arange(3), 3 * n[:, 1:] + np.arange(3)], axis=1)
+
+
+def _assemble(matrices: np.ndarray, dofs: np.ndarray, size: int) -> sp.csr_matrix:
+    rows = np.repeat(dofs, 6, axis=1).ravel()
+    cols = np.tile(dofs, (1, 6)).ravel()
+    return sp.csr_matrix((matrices.ravel(), (rows, cols)), shape=(size, size))
+
+
+def geometric_stiffness(model: Model, axial_force_n: dict[str, float]) -> sp.csr_matrix:
+    """Geometric stiffness on the free dofs for axial forces (N, tension positive) per member name.
+
+    Linear in the forces: the diagnosis fits a locked-in force by scaling this matrix.
+    """
+    frame, mesh = model.frame, model.mesh
+    names = [m.name for m in frame.members]
+    for name in axial_force_n:
+        if name not in names:
+            raise KeyError(f"{frame.source}: members: no member named {name!r}")
+    force = np.array([axial_force_n.get(n, 0.0) for n in names])[mesh.element_member]
+    d = np.diff(mesh.node_xy[mesh.connectivity], axis=1)[:, 0]
+    length = np.hypot(d[:, 0], d[:, 1])
+    t = elements.rotation(d[:, 0] / length, d[:, 1] / length)
+    kg = elements.to_global(elements.geometric_local(length, force), t)
+    full = _assemble(kg, _element_dofs(mesh), mesh.dof_count)
+    return full[model.free_dofs][:, model.free_dofs].tocsr()
+
+
+def assemble(frame: Frame) -> Model:
+    """Assemble the mass, rest stiffness and joint stiffnesses of ``frame`` (eq. 3-4).
+
+    Returns
+    -------
+    Model
+        Matrices on the free dofs; ``Model.stiffness(gamma)`` gives ``K(gamma)``.
+    """
+    mesh = mesh_frame(frame)
+    n = mesh.dof_count
+    k_el, m_el, _, _, _ = _global_element_matrices(frame, mesh)
+    dofs = _element_dofs(mesh)
+    rest = mesh.element_joint < 0
+    k_rest = _assemble(k_el[rest], dofs[rest], n)
+    k_joints = [_assemble(k_el[mesh.element_joint == j], dofs[mesh.element_joint == j], n)
+                for j in range(len(frame.joints))]
+    mass = _assemble(m_el, dofs, n)
+
+    diag_k, diag_m = np.zeros(n), np.zeros(n)
+    fixed = np.zeros(n, bool)
+    for support in frame.supports:
+        node = mesh.point_node[support.point]
+        for i, dof in enumerate(DOF_NAMES):
+            value = support.stiffness(dof)
+            if value == math.inf:
+                fixed[3 * node + i] = True
+            elif value is not None:
+                diag_k[3 * node + i] += value
+    for spring in frame.springs:
+        diag_k[3 * mesh.point_node[spring.point] + DOF_NAMES.index(spring.dof)] += spring.stiffness
+    for pm in frame.masses:
+        node = mesh.point_node[pm.point]
+        diag_m[3 * node: 3 * node + 3] += (pm.mass, pm.mass, pm.rotary_inertia)
+    k_rest = k_rest + sp.diags(diag_k)
+    mass = mass + sp.diags(diag_m)
+    free = np.flatnonzero(~fixed)
+
+    def reduce(a: sp.spmatrix) -> sp.csr_matrix:
+        a = a.tocsr()[free][:, free].tocsr()
+        a.sum_duplicates()
+        return a
+
+    model = Model(frame, mesh, reduce(mass), reduce(k_rest), tuple(reduce(k) for k in k_joints), free)
+    forces = {m.name: m.axial_force for m in frame.members if m.axial_force != 0.0}
+    if forces:
+        model = Model(frame, mesh, model.mass, (model.stiffness_rest + geometric_stiffness(model, forces)).tocsr(),
+                      model.stiffness_joints, free)
+    return model

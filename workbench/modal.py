@@ -1,0 +1,228 @@
+"""Modal analysis: eigen-solutions of ``K phi = lambda M phi``, MAC, and FRF synthesis.
+
+Eigenvectors are mass-normalised (``Phi^T M Phi = I``) and signed so that their largest component
+is positive, which keeps mode tracking and eigenvector derivatives deterministic. FRFs follow the
+contract's exp(+i omega t) convention: a receptance is ``1 / (k - omega^2 m + i omega c)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = [
+    "DENSE_LIMIT",
+    "QUANTITIES",
+    "Modes",
+    "FRFSet",
+    "solve_modes",
+    "model_modes",
+    "mac",
+    "modal_frf",
+    "frame_frf",
+]
+
+DENSE_LIMIT = 1500  # dofs; above it the sparse shift-invert Lanczos solver is faster
+QUANTITIES = ("receptance", "mobility", "accelerance")
+
+
+@dataclass(frozen=True)
+class Modes:
+    """The first modes of a structure.
+
+    Attributes
+    ----------
+    eigenvalues : (n,) ``omega^2`` in (rad/s)^2, increasing.
+    shapes : (n_dof, n) mass-normalised eigenvectors on the model's free dofs.
+    """
+
+    eigenvalues: np.ndarray
+    shapes: np.ndarray
+
+    def __post_init__(self) -> None:
+        if self.shapes.ndim != 2 or self.shapes.shape[1] != self.eigenvalues.shape[0]:
+            raise ValueError(f"Modes: shapes {self.shapes.shape} do not match "
+                             f"{self.eigenvalues.shape[0]} eigenvalues")
+
+    @property
+    def count(self) -> int:
+        return int(self.eigenvalues.size)
+
+    @property
+    def omega(self) -> np.ndarray:
+        """Natural circular frequencies, rad/s (rigid-body modes give 0)."""
+        return np.sqrt(np.clip(self.eigenvalues, 0.0, None))
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        return self.omega / (2.0 * np.pi)
+
+
+@dataclass(frozen=True)
+class FRFSet:
+    """FRFs of several responses to one excitation.
+
+    Attributes
+    ----------
+    frequency_hz : (n_freq,) frequency lines, Hz.
+    values : (n_response, n_freq) complex FRF, in the unit of ``quantity``
+        (receptance m/N, mobility m/s/N, accelerance m/s^2/N).
+    responses : names of the responses (sensor names).
+    quantity : one of `QUANTITIES`.
+    """
+
+    frequency_hz: np.ndarray
+    values: np.ndarray
+    responses: tuple[str, ...]
+    quantity: str
+
+    def __post_init__(self) -> None:
+        if self.quantity not in QUANTITIES:
+            raise ValueError(f"FRFSet: quantity {self.quantity!r} is not one of {QUANTITIES}")
+        if self.values.shape != (len(self.responses), self.frequency_hz.size):
+            raise ValueError(f"FRFSet: values {self.values.shape} do not match "
+                             f"{len(self.responses)} responses x {self.frequency_hz.size} lines")
+
+
+def _normalise(vectors: np.ndarray, mass: sp.spmatrix | np.ndarray) -> np.ndarray:
+    norms = np.sqrt(np.einsum("ik,ik->k", vectors, mass @ vectors))
+    vectors = vectors / norms
+    peak = vectors[np.abs(vectors).argmax(axis=0), np.arange(vectors.shape[1])]
+    return vectors * np.sign(peak)
+
+
+def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndarray, count: int,
+                method: str = "auto") -> Modes:
+    """First ``count`` modes of ``K phi = lambda M phi``, mass-normalised.
+
+    Parameters
+    ----------
+    stiffness, mass : (n, n) symmetric matrices, K positive semi-definite, M positive definite.
+    count : number of modes, the lowest first.
+    method : ``"dense"`` (LAPACK, all of K and M in memory), ``"sparse"`` (ARPACK shift-invert
+        Lanczos about a negative shift, so free-free structures work too) or ``"auto"``: dense up
+        to `DENSE_LIMIT` dofs.
+
+    Returns
+    -------
+    Modes
+
+    Raises
+    ------
+    ValueError
+        A bad count or method, or a singular model (a mechanism, or a mass matrix that is not
+        positive definite).
+    """
+    n = stiffness.shape[0]
+    if not 1 <= count <= n:
+        raise ValueError(f"count: asked for {count} modes of a model with {n} dofs")
+    if method == "auto":
+        method = "dense" if n <= DENSE_LIMIT or count >= n - 1 else "sparse"
+    # A shift below zero keeps K - sigma M definite for free-free structures; it is small against
+    # the first elastic eigenvalue, so ordering by distance from it is ordering by value.
+    sigma = -1e-6 * float(np.median(stiffness.diagonal() / np.maximum(mass.diagonal(), 1e-300)))
+    if method == "dense":
+        k = stiffness.toarray() if sp.issparse(stiffness) else np.asarray(stiffness)
+        m = mass.toarray() if sp.issparse(mass) else np.asarray(mass)
+        try:
+            values, vectors = sla.eigh(k, m, subset_by_index=[0, count - 1])
+            # LAPACK's error is absolute (about eps * ||K||), which leaves the low modes of a frame
+            # with stiff axial dofs at 1e-7 relative; one step of inverse subspace iteration with
+            # Rayleigh-Ritz brings them to the sparse solver's 1e-10.
+            vectors = sla.cho_solve(sla.cho_factor(k - sigma * m), m @ vectors)
+            values, ritz = sla.eigh(vectors.T @ k @ vectors, vectors.T @ m @ vectors)
+            vectors = vectors @ ritz
+        except np.linalg.LinAlgError as exc:
+            raise ValueError(f"singular model: the mass matrix is not positive definite ({exc})") from None
+    elif method == "sparse":
+        if count >= n - 1:
+            raise ValueError(f"count: the sparse solver finds at most {n - 2} modes of {n} dofs")
+        k, m = sp.csc_matrix(stiffness), sp.csc_matrix(mass)
+        try:
+            values, vectors = spla.eigsh(k, k=count, M=m, sigma=sigma, which="LM", tol=0.0)
+        except (RuntimeError, spla.ArpackError) as exc:
+            raise ValueError(f"singular model: the shift-invert factorisation failed ({exc})") from None
+        order = np.argsort(values)
+        values, vectors = values[order], vectors[:, order]
+    else:
+        raise ValueError(f"method: {method!r} is not one of auto, dense, sparse")
+    scale = max(abs(values[-1]), 1.0)
+    if np.any(values < -1e-8 * scale):
+        raise ValueError("singular model: negative eigenvalues (an axial force above buckling, "
+                         "or a stiffness that is not positive)")
+    return Modes(values, _normalise(vectors, mass))
+
+
+def model_modes(model, count: int = 10, gamma: np.ndarray | None = None, method: str = "auto") -> Modes:
+    """First ``count`` modes of an assembled `Model` with joint moduli ``gamma`` (default: nominal)."""
+    return solve_modes(model.stiffness(gamma), model.mass, count, method)
+
+
+def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Modal assurance criterion between the columns of ``a`` (n, p) and ``b`` (n, q), shape (p, q).
+
+    ``MAC_ij = |a_i^H b_j|^2 / ((a_i^H a_i)(b_j^H b_j))``: 1 for collinear shapes, 0 for orthogonal.
+    """
+    a, b = np.atleast_2d(a.T).T, np.atleast_2d(b.T).T
+    cross = np.abs(a.conj().T @ b) ** 2
+    return cross / np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
+
+
+def modal_frf(modes: Modes, frequency_hz: np.ndarray, response_dofs: np.ndarray, excitation_dof: int,
+              damping_ratios: np.ndarray, quantity: str = "receptance") -> np.ndarray:
+    """FRFs by modal superposition with modal damping.
+
+    ``H_jk(omega) = sum_r phi_jr phi_kr / (omega_r^2 - omega^2 + 2 i zeta_r omega_r omega)``
+    (receptance, m/N), times ``i omega`` for mobility and ``-omega^2`` for accelerance.
+
+    Parameters
+    ----------
+    modes : mass-normalised modes; only these are summed (no residual terms).
+    frequency_hz : (n_freq,) frequency lines, Hz.
+    response_dofs : (n_resp,) indices of the response dofs in the model's free-dof system.
+    excitation_dof : index of the excited dof.
+    damping_ratios : (modes.count,) modal damping ratios.
+    quantity : receptance, mobility or accelerance.
+
+    Returns
+    -------
+    (n_resp, n_freq) complex array.
+    """
+    if quantity not in QUANTITIES:
+        raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+    zeta = np.asarray(damping_ratios, float)
+    if zeta.shape != (modes.count,):
+        raise ValueError(f"damping_ratios: expected {modes.count} values, got shape {zeta.shape}")
+    omega = 2.0 * np.pi * np.asarray(frequency_hz, float)
+    wr = modes.omega
+    constants = modes.shapes[np.asarray(response_dofs)] * modes.shapes[excitation_dof]  # (n_resp, n_modes)
+    denominator = wr[:, None] ** 2 - omega[None, :] ** 2 + 2j * zeta[:, None] * wr[:, None] * omega[None, :]
+    h = constants @ (1.0 / denominator)
+    if quantity == "mobility":
+        h = h * (1j * omega)
+    elif quantity == "accelerance":
+        h = h * (-(omega**2))
+    return h
+
+
+def frame_frf(model, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",
+              damping_ratios: np.ndarray | None = None) -> FRFSet:
+    """FRFs at the frame's sensors for its excitation (CONTRACTS.md section 1).
+
+    ``damping_ratios`` defaults to the frame's ``[damping]`` table (the last value repeats).
+    """
+    frame = model.frame
+    if frame.excitation is None:
+        raise ValueError(f"{frame.source}: excitation: the frame has no [excitation] table")
+    if not frame.sensors:
+        raise ValueError(f"{frame.source}: sensors: the frame has no [[sensors]]")
+    if damping_ratios is None:
+        damping_ratios = np.array(frame.damping_ratio(modes.count))
+    responses = np.array([model.dof(s.point, s.dof) for s in frame.sensors])
+    excitation = model.dof(frame.excitation.point, frame.excitation.dof)
+    values = modal_frf(modes, frequency_hz, responses, excitation, damping_ratios, quantity)
+    return FRFSet(np.asarray(frequency_hz, float), values, tuple(s.name for s in frame.sensors), quantity)
