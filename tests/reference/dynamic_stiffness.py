@@ -14,8 +14,14 @@ stiffness matrix of the free dofs.  Frequencies are located by bisection on
 ``J``, so multiplicities are returned exactly and no mode can be missed.
 
 The hyperbolic functions are written in a form scaled by ``1/cosh(nu)``
-(``tanh`` and ``sech`` only), hence there is no overflow for any ``nu``.
+(``tanh`` and ``sech`` only), hence there is no overflow for any ``nu``; for
+``nu < 1`` exact Taylor series avoid the cancellation in ``1 - cos cosh``.
 Only numpy and scipy are used; nothing is imported from ``workbench``.
+
+Limitations: ``J(0) = 0`` is assumed (stable frame, non-negative springs and
+masses); a mechanism yields frequencies of ~0 Hz (within ``tol_hz``).  The
+count uses a dense ``eigvalsh`` per bisection step, i.e. about
+``count * 45`` evaluations of cost O(n_dof^3).
 """
 
 from fractions import Fraction
