@@ -1,0 +1,76 @@
+"""The ``workbench`` command line: outputs as the contract says, exit 2 with one line on bad input."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from workbench.assembly import assemble
+from workbench.cli import main
+from workbench.frame import write_frame
+from workbench.generate import multibay_frame
+from workbench.modal import model_modes
+
+
+@pytest.fixture
+def frame_file(tmp_path):
+    frame = multibay_frame(1, 1, element_length=0.05)
+    path = tmp_path / "frame.toml"
+    write_frame(frame, path)
+    return frame, path
+
+
+def test_modes_writes_the_nominal_frequencies(frame_file, tmp_path, capsys):
+    frame, path = frame_file
+    assert main(["modes", str(path), "--count", "4", "--out", str(tmp_path / "out")]) == 0
+    with open(tmp_path / "out" / "modes.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["mode"] for r in rows] == ["1", "2", "3", "4"] and list(rows[0]) == ["mode", "frequency_hz"]
+    expected = model_modes(assemble(frame), 4).frequency_hz
+    np.testing.assert_allclose([float(r["frequency_hz"]) for r in rows], expected, rtol=1e-14)
+    assert "4 modes" in capsys.readouterr().out
+
+
+def test_existing_output_is_replaced_only_with_force(frame_file, tmp_path, capsys):
+    _, path = frame_file
+    out = tmp_path / "out"
+    assert main(["modes", str(path), "--count", "2", "--out", str(out)]) == 0
+    before = (out / "modes.csv").read_text()
+    assert main(["modes", str(path), "--count", "3", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "exists; pass --force" in err and err.count("\n") == 1
+    assert (out / "modes.csv").read_text() == before
+    assert main(["modes", str(path), "--count", "3", "--out", str(out), "--force"]) == 0
+    assert len((out / "modes.csv").read_text().splitlines()) == 4
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary left behind
+
+
+@pytest.mark.parametrize("args, message", [
+    (["modes", "{missing}", "--out", "{out}"], "cannot read the frame file"),
+    (["modes", "{bad}", "--out", "{out}"], "materials.al.density: must be positive"),
+    (["modes", "{good}", "--count", "0", "--out", "{out}"], "--count: must be a positive integer"),
+    (["modes", "{good}", "--count", "100000", "--out", "{out}"], "count: asked for 100000 modes"),
+    (["modes", "{good}"], "the following arguments are required: --out"),
+])
+def test_bad_input_exits_2_with_one_line(frame_file, tmp_path, capsys, args, message):
+    _, good = frame_file
+    bad = tmp_path / "bad.toml"
+    bad.write_text(good.read_text().replace("density = 2700.0", "density = -1.0").replace(
+        "[materials.aluminium]", "[materials.al]").replace('material = "aluminium"', 'material = "al"'))
+    paths = {"missing": tmp_path / "nope.toml", "bad": bad, "good": good, "out": tmp_path / "out"}
+    assert main([a.format(**paths) for a in args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_console_entry_point_runs_as_a_module(frame_file, tmp_path):
+    _, path = frame_file
+    done = subprocess.run([sys.executable, "-m", "workbench.cli", "modes", str(path), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "o" / "modes.csv").exists()
