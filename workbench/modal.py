@@ -135,7 +135,9 @@ def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndar
             # LAPACK's error is absolute (about eps * ||K||), which leaves the low modes of a frame
             # with stiff axial dofs at 1e-7 relative; one step of inverse subspace iteration with
             # Rayleigh-Ritz brings them to the sparse solver's 1e-10.
-            vectors = sla.cho_solve(sla.cho_factor(k - sigma * m), m @ vectors)
+            factor = sla.cho_factor(k - sigma * m, overwrite_a=True, check_finite=False)
+            vectors = sla.cho_solve(factor, m @ vectors)
+            del factor
             values, ritz = sla.eigh(vectors.T @ k @ vectors, vectors.T @ m @ vectors)
             vectors = vectors @ ritz
         except np.linalg.LinAlgError as exc:
