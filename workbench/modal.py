@@ -26,7 +26,9 @@ __all__ = [
     "frame_frf",
 ]
 
-DENSE_LIMIT = 1500  # dofs; above it the sparse shift-invert Lanczos solver is faster
+# dofs; above it sparse shift-invert Lanczos is faster for the first tens of modes (measured: 7 ms
+# against 14 ms at 318 dofs, 6 ms against 28 ms at 489, single-threaded BLAS).
+DENSE_LIMIT = 200
 # Shift of the shift-invert solver, (rad/s)^2: below zero so that K - sigma M is definite for
 # free-free structures, and small (0.1 Hz) because Lanczos converges fastest, and most accurately,
 # when the shift sits just under the wanted eigenvalues.
@@ -107,9 +109,9 @@ def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndar
     ----------
     stiffness, mass : (n, n) symmetric matrices, K positive semi-definite, M positive definite.
     count : number of modes, the lowest first.
-    method : ``"dense"`` (LAPACK, all of K and M in memory), ``"sparse"`` (ARPACK shift-invert
-        Lanczos about a negative shift, so free-free structures work too) or ``"auto"``: dense up
-        to `DENSE_LIMIT` dofs.
+    method : ``"dense"`` (LAPACK, all of K and M in memory, then one Rayleigh-Ritz refinement),
+        ``"sparse"`` (ARPACK shift-invert Lanczos about a small negative shift, so free-free
+        structures work too) or ``"auto"``: dense up to `DENSE_LIMIT` dofs.
 
     Returns
     -------
@@ -147,7 +149,10 @@ def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndar
             raise ValueError(f"count: the sparse solver finds at most {n - 2} modes of {n} dofs")
         k, m = sp.csc_matrix(stiffness), sp.csc_matrix(mass)
         try:
-            values, vectors = spla.eigsh(k, k=count, M=m, sigma=sigma, which="LM", tol=0.0)
+            # A fixed, generic start vector: ARPACK's default one depends on the history of
+            # earlier calls, and results must not depend on what ran before.
+            start = np.random.default_rng(12345).standard_normal(n)
+            values, vectors = spla.eigsh(k, k=count, M=m, sigma=sigma, which="LM", tol=0.0, v0=start)
         except (RuntimeError, spla.ArpackError) as exc:
             raise ValueError(f"singular model: the shift-invert factorisation failed ({exc})") from None
         order = np.argsort(values)
