@@ -21,7 +21,7 @@ from . import elements
 from .frame import DOF_NAMES, Frame, locate_point, member_length
 
 __all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "geometric_stiffness",
-           "element_energies", "strain_energy"]
+           "element_energies", "joint_energies", "strain_energy"]
 
 
 @dataclass(frozen=True)
@@ -116,12 +116,12 @@ class Model:
         union = union.tocsr()
         union.sum_duplicates()
         union.sort_indices()
-        lookup = sp.csr_matrix((np.arange(union.nnz, dtype=float) + 1.0, union.indices, union.indptr),
-                               shape=union.shape)
+        n = union.shape[0]
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(union.indptr)) * n + union.indices
 
         def positions(a: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
-            a = a.tocoo()
-            return np.asarray(lookup[a.row, a.col]).ravel().astype(int) - 1, a.data
+            a = a.tocoo()  # each entry's place in the union's data, by its sorted (row, col) key
+            return np.searchsorted(keys, a.row.astype(np.int64) * n + a.col), a.data
 
         base = np.zeros(union.nnz)
         idx, val = positions(self.stiffness_rest)
@@ -293,37 +293,59 @@ def _geometric(frame: Frame, mesh: Mesh, data: ElementData, axial_force_n: dict[
     return _assemble(kg, data.dofs, mesh.dof_count)
 
 
-def element_energies(model: Model, shapes: np.ndarray) -> np.ndarray:
-    """Twice the elastic strain energy of each element, ``phi^T K_e phi``, shape (n_elements, n_shapes).
+def _deformations(model: Model, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stretch and the two end rotations relative to the chord of every element, (n_el, n_shapes)."""
+    e = model.elements
+    u = model.expand(np.atleast_2d(shapes.T).T)[e.dofs]  # (n_el, 6, n_shapes)
+    dx, dy = u[:, 3] - u[:, 0], u[:, 4] - u[:, 1]
+    stretch = e.cos[:, None] * dx + e.sin[:, None] * dy
+    chord = (-e.sin[:, None] * dx + e.cos[:, None] * dy) / e.length[:, None]
+    return stretch, u[:, 2] - chord, u[:, 5] - chord
 
+
+def element_energies(model: Model, shapes: np.ndarray, others: np.ndarray | None = None) -> np.ndarray:
+    """``x^T K_e y`` of each element for the columns of ``shapes`` (x) and ``others`` (y, default x).
+
+    Shape (n_elements, n_shapes): twice the strain energy of each element when ``others`` is None.
     Computed from each element's deformations (stretch and end rotations relative to the chord),
     not from the assembled matrix: for a bending mode of a frame with stiff axial dofs, ``phi^T K
     phi`` on the assembled ``K`` loses about 1e-7 to cancellation, this does not. Joint elements
     are at their joint's mean modulus (gamma = 1). Shapes are on the model's free dofs.
     """
     e = model.elements
-    u = model.expand(np.atleast_2d(shapes.T).T)[e.dofs]  # (n_el, 6, n_shapes)
-    dx, dy = u[:, 3] - u[:, 0], u[:, 4] - u[:, 1]
-    stretch = e.cos[:, None] * dx + e.sin[:, None] * dy
-    chord = (-e.sin[:, None] * dx + e.cos[:, None] * dy) / e.length[:, None]
-    a, b = u[:, 2] - chord, u[:, 5] - chord
+    sx, ax, bx = _deformations(model, shapes)
+    sy, ay, by = (sx, ax, bx) if others is None else _deformations(model, others)
     phi = e.phi[:, None]
-    bending = (4.0 + phi) * (a * a + b * b) + 2.0 * (2.0 - phi) * a * b
-    return e.axial[:, None] * stretch**2 + e.bending[:, None] * bending
+    bending = (4.0 + phi) * (ax * ay + bx * by) + (2.0 - phi) * (ax * by + bx * ay)
+    return e.axial[:, None] * sx * sy + e.bending[:, None] * bending
+
+
+def joint_energies(model: Model, shapes: np.ndarray, others: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``x^T K_rest y`` and ``x^T K_j y`` for every joint, from `element_energies`.
+
+    Returns
+    -------
+    rest : (n_shapes,) everything outside the joint zones: elements, springs, geometric stiffness.
+    joints : (n_joints, n_shapes) each joint zone at its mean modulus (``lambda_kj`` of eq. 5).
+    """
+    x = np.atleast_2d(shapes.T).T
+    y = x if others is None else np.atleast_2d(others.T).T
+    per_element = element_energies(model, x, None if others is None else y)
+    n_joints = len(model.frame.joints)
+    owner = model.mesh.element_joint
+    sums = np.zeros((n_joints + 1, per_element.shape[1]))
+    np.add.at(sums, owner + 1, per_element)  # row 0: elements outside the joints
+    rest = sums[0] + np.einsum("ik,i,ik->k", x, model.spring_stiffness, y)
+    if model.stiffness_geometric.nnz:
+        rest = rest + np.einsum("ik,ik->k", x, model.stiffness_geometric @ y)
+    return rest, sums[1:]
 
 
 def strain_energy(model: Model, shapes: np.ndarray, gamma: np.ndarray | None = None) -> np.ndarray:
     """``phi^T K(gamma) phi`` for each shape (n_shapes,), accurate to rounding (see `element_energies`)."""
-    per_element = element_energies(model, shapes)
-    weight = np.ones(len(model.frame.joints) + 1)
-    if gamma is not None:
-        weight[:-1] = np.asarray(gamma, float)
-    total = weight[model.mesh.element_joint] @ per_element
-    shapes = np.atleast_2d(shapes.T).T
-    total += np.einsum("ik,i,ik->k", shapes, model.spring_stiffness, shapes)
-    if model.stiffness_geometric.nnz:
-        total += np.einsum("ik,ik->k", shapes, model.stiffness_geometric @ shapes)
-    return total
+    rest, joints = joint_energies(model, shapes)
+    weight = np.ones(len(joints)) if gamma is None else np.asarray(gamma, float)
+    return rest + weight @ joints
 
 
 def assemble(frame: Frame) -> Model:

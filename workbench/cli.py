@@ -10,11 +10,13 @@ import sys
 import time
 from collections.abc import Sequence
 
+import numpy as np
+
 from . import __version__
 from .assembly import assemble
 from .frame import read_frame
 from .modal import model_modes
-from .outputs import OutputExistsError, csv_text, write_outputs
+from .outputs import OutputExistsError, csv_text, json_text, write_outputs
 
 __all__ = ["main"]
 
@@ -40,6 +42,32 @@ def _modes(args: argparse.Namespace) -> str:
     return f"{modes.count} modes of {model.frame.name!r} ({model.size} dofs) written to {args.out}/modes.csv"
 
 
+def _propagate(args: argparse.Namespace) -> str:
+    from .smr import propagate
+    from .stochastic import joint_model
+
+    model = assemble(read_frame(args.frame))
+    joints = joint_model(model.frame)
+    if not joints.random.any():
+        raise ValueError(f"{args.frame}: joints: no joint has a cov > 0, so nothing varies")
+    start = time.perf_counter()
+    moments = propagate(model, joints, args.method, args.count, args.samples, args.seed, args.workers,
+                        progress=args.method == "mc" and sys.stderr.isatty())
+    wall = time.perf_counter() - start
+    table = csv_text(["mode", "mean_hz", "std_hz"],
+                     ((k + 1, float(m), float(s)) for k, (m, s) in enumerate(zip(moments.mean_hz, moments.std_hz))))
+    run = {"method": args.method, "wall_time_s": wall, "samples": args.samples if args.method == "mc" else 0,
+           "seed": args.seed, "frame": str(args.frame), "joints": {n: float(c) for n, c in zip(joints.names, joints.cov)},
+           "nominal_hz": moments.nominal_hz.tolist()}
+    if moments.refined is not None:
+        run["smr2_modes"] = [int(k) + 1 for k in moments.refined.nonzero()[0]]
+    if moments.proximity is not None:
+        run["proximity_factor"] = [float(p) if np.isfinite(p) else None for p in moments.proximity]
+        run["dispersion"] = moments.dispersion.tolist()
+    write_outputs(args.out, {"moments.csv": table, "run.json": json_text(run)}, force=args.force)
+    return f"{args.method}: moments of {moments.count} modes in {wall:.3f} s written to {args.out}"
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="workbench", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
@@ -51,6 +79,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output directory (created if absent)")
     p.add_argument("--force", action="store_true", help="replace existing files in --out")
     p.set_defaults(run=_modes)
+
+    p = sub.add_parser("propagate", help="moments of the eigenfrequencies under random joint moduli")
+    p.add_argument("frame", help="frame.toml whose joints have a cov (CONTRACTS.md section 1)")
+    p.add_argument("--method", required=True, choices=["smr1", "smr2", "adaptive", "pert2", "mc"])
+    p.add_argument("--samples", type=_positive_int, default=10_000, help="Monte Carlo samples (default 10000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the joint draws (default 0)")
+    p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
+    p.add_argument("--workers", type=_positive_int, default=1, help="Monte Carlo worker processes")
+    p.add_argument("--out", required=True, help="output directory (created if absent)")
+    p.add_argument("--force", action="store_true", help="replace existing files in --out")
+    p.set_defaults(run=_propagate)
     return parser
 
 

@@ -1,0 +1,369 @@
+"""Stochastic Model Reduction (paper section 3.2): SMR1, SMR2, the proximity factor, and the
+second-order perturbation method it is compared with.
+
+All methods take an assembled model (``K(gamma) = K_rest + sum_j gamma_j K_j``, eq. 3-4) and a
+`JointModel` of independent Gamma laws (eq. 8-9), and return the first two moments of the first
+eigenfrequencies, modes in the nominal model's order.
+
+SMR1 (eq. 5) keeps the nominal eigenvectors: ``lambda_k = lambda_k,rest + sum_j gamma_j lambda_kj``
+with ``lambda_kj = phi_k^T K_j phi_k``. Its frequency moments are computed exactly, without
+sampling, from the Gamma laws' Laplace transforms (`sqrt_moments`).
+
+SMR2 (eq. 6-7) lets the eigenvector vary to first order, ``phi_k(gamma) = phi_k + sum_j
+dphi_k/dgamma_j (gamma_j - 1)``, with Nelson's derivatives. We evaluate the eigenvalue as the
+Rayleigh quotient ``phi^T K(gamma) phi / phi^T M phi`` rather than eq. (6)'s unnormalised
+``phi^T K(gamma) phi``: the quotient is stationary, so an eigenvector error of order d gives an
+eigenvalue error of order d^2, whereas the first-order vector is not mass-normalised at second
+order and eq. (6) inherits that error at order d^2 directly (`smr2(..., rayleigh=False)` keeps
+eq. (6) for comparison). Moments over gamma by a Gauss (or quasi-Monte Carlo) rule.
+
+The adaptive strategy of Figure 10 refines a mode by SMR2 where SMR1's deterministic eigenvector
+is not good enough. The paper's indicator, the proximity factor, is defined in its reference [27],
+which we do not have. Ours, from the first two moments of neighbouring eigenvalues (SMR1, free):
+
+    PF_k = min_(l != k) |E[lambda_k] - E[lambda_l]| / sqrt(sigma[lambda_k] sigma[lambda_l]).
+
+To first order the eigenvector moves by ``sum_l c_kl phi_l`` with ``c_kl = phi_l^T dK phi_k /
+(lambda_k - lambda_l)``, and joint by joint ``sigma[phi_l^T dK phi_k] <= sqrt(sigma[lambda_k]
+sigma[lambda_l])`` (Cauchy-Schwarz), so ``1 / PF_k`` bounds the spread of the largest mixing
+coefficient. It catches veering pairs: on a symmetric portal (benchmarks/smr_accuracy.py) SMR1's
+std error on a close pair follows ``3.8 / PF^2``.
+
+Our accuracy study also shows what PF cannot see: SMR1's std error on well-separated modes grows as
+``kappa * D_k`` with the variance-weighted joint dispersion ``D_k = sum_j w_kj cov_j^2`` (``w_kj``,
+joint j's share of ``Var[lambda_k]``) and ``kappa`` between 0.1 and 1.9 on every frame and CoV we
+tried: the strain redistributes inside a joint zone whose modulus varies a lot, a static effect of
+the high modes that no neighbour's moments reveal (horizontal joint, CoV 0.22: 4-9 % error at
+PF >= 36). So a mode is refined when ``PF_k < PF_THRESHOLD`` (30) or ``D_k > DISPERSION_THRESHOLD``
+(0.0025); each keeps SMR1's predicted error under 0.5 %, half of the 1 % budget. Both come free
+from SMR1's closed form.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.integrate import quad
+
+from .assembly import joint_energies
+from .modal import Modes, model_modes
+from .stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule
+
+__all__ = [
+    "PROXIMITY_THRESHOLD",
+    "DISPERSION_THRESHOLD",
+    "dispersion",
+    "Sensitivities",
+    "sensitivities",
+    "sqrt_moments",
+    "eigenvalue_moments",
+    "proximity_factor",
+    "eigenvector_derivatives",
+    "smr1",
+    "smr2",
+    "adaptive",
+    "pert2",
+    "propagate",
+    "METHODS",
+]
+
+PROXIMITY_THRESHOLD = 30.0  # 3.8 / PF^2 < 0.5 %
+DISPERSION_THRESHOLD = 0.0025  # 1.9 * D < 0.5 %
+EXTRA_MODES = 4  # nominal modes computed beyond ``count`` so the last mode has an upper neighbour
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class Sensitivities:
+    """Nominal modes and the eigenvalue split of eq. (5).
+
+    Attributes
+    ----------
+    modes : nominal modes (``count + EXTRA_MODES`` of them when available).
+    rest : (n_modes,) ``phi_k^T K_rest phi_k``, (rad/s)^2.
+    joints : (n_modes, n_joints) ``lambda_kj = phi_k^T K_j phi_k``, (rad/s)^2.
+    """
+
+    modes: Modes
+    rest: np.ndarray
+    joints: np.ndarray
+
+
+def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
+    """Nominal modes of ``model`` (joints at ``gamma``, default their means) and ``lambda_kj`` (eq. 5)."""
+    modes = model_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
+    rest, joints = joint_energies(model, modes.shapes)
+    if gamma is not None:
+        joints = joints * np.asarray(gamma, float)[:, None]
+    return Sensitivities(modes, rest, joints.T)
+
+
+def _x_minus_log1p(x: np.ndarray) -> np.ndarray:
+    """``x - log(1 + x)`` without cancellation for small x (series below 0.25)."""
+    x = np.asarray(x, float)
+    out = x - np.log1p(x)
+    small = np.abs(x) < 0.25
+    if np.any(small):
+        xs = x[small]
+        n = np.arange(2, 40)
+        out[small] = np.sum((-1.0) ** n * xs[:, None] ** n / n, axis=1)
+    return out
+
+
+def sqrt_moments(constant: float, weights: np.ndarray, shape: np.ndarray, scale: np.ndarray) -> tuple[float, float]:
+    """Mean and standard deviation of ``sqrt(X)``, ``X = constant + sum_i weights_i gamma_i``.
+
+    ``gamma_i ~ Gamma(shape_i, scale_i)`` independent, ``shape_i * scale_i = 1``. Exact, for any
+    number of gammas: with ``mu = E[X]`` and ``r(s) = sum_i shape_i (x_i - log(1 + x_i))``,
+    ``x_i = s weights_i scale_i / mu``,
+
+        E[sqrt X] - sqrt(mu) = -sqrt(mu) / (2 sqrt(pi)) int_0^inf e^-s expm1(r(s)) s^(-3/2) ds,
+
+    from ``sqrt(x) = (2 sqrt(pi))^-1 int_0^inf (1 - e^(-t x)) t^(-3/2) dt`` and the Gamma Laplace
+    transform. The variance ``mu - E[sqrt X]^2`` is formed from the difference, so no cancellation
+    spoils the small CoVs of eigenfrequencies (Table 3: 1e-4).
+    """
+    weights, shape, scale = (np.asarray(a, float) for a in (weights, shape, scale))
+    mu = constant + float(np.sum(weights))  # E[gamma_i] = 1
+    if mu <= 0:
+        raise ValueError(f"sqrt_moments: E[X] = {mu} must be positive")
+    if weights.size == 0 or not np.any(weights):
+        return float(np.sqrt(mu)), 0.0
+    rate = weights * scale / mu
+
+    def integrand(s: float) -> float:
+        r = float(np.sum(shape * _x_minus_log1p(s * rate)))
+        # e^-s expm1(r): expm1 keeps small r exact; for large r (no rest stiffness) it would
+        # overflow where the product itself is tiny.
+        value = np.exp(-s) * np.expm1(r) if r < 1.0 else np.exp(r - s) - np.exp(-s)
+        return value * s**-1.5
+
+    total = 0.0
+    for a, b in ((0.0, 1.0), (1.0, 10.0), (10.0, 60.0), (60.0, np.inf)):
+        value, _ = quad(integrand, a, b, epsabs=0.0, epsrel=1e-12, limit=200)
+        total += value
+    delta = -np.sqrt(mu) / (2.0 * np.sqrt(np.pi)) * total
+    variance = -2.0 * np.sqrt(mu) * delta - delta * delta
+    return float(np.sqrt(mu) + delta), float(np.sqrt(max(variance, 0.0)))
+
+
+def eigenvalue_moments(sens: Sensitivities, joints: JointModel) -> tuple[np.ndarray, np.ndarray]:
+    """SMR1 mean and standard deviation of the eigenvalues (rad/s)^2, closed form (eq. 5)."""
+    mean = sens.rest + sens.joints.sum(axis=1)
+    std = np.sqrt((sens.joints**2) @ joints.cov**2)
+    return mean, std
+
+
+def proximity_factor(mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """``PF_k = min_(l != k) |mean_k - mean_l| / sqrt(std_k std_l)`` over the given eigenvalues.
+
+    Large means well separated (SMR1 is enough); inf for a mode with no random neighbour.
+    """
+    gap = np.abs(mean[:, None] - mean[None, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pf = gap / np.sqrt(np.outer(std, std))
+    pf[~np.isfinite(pf)] = np.inf
+    np.fill_diagonal(pf, np.inf)
+    return pf.min(axis=1)
+
+
+def dispersion(sens: Sensitivities, joints: JointModel) -> np.ndarray:
+    """``D_k = sum_j w_kj cov_j^2``, ``w_kj`` joint j's share of SMR1's ``Var[lambda_k]`` (0 if none)."""
+    share = sens.joints**2 * joints.cov**2
+    total = share.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = (share * joints.cov**2).sum(axis=1) / total
+    return np.where(total > 0, d, 0.0)
+
+
+def _check(model, joints: JointModel) -> None:
+    if joints.names != model.joint_names:
+        raise ValueError(f"joint model {joints.names} does not match the model's joints {model.joint_names}")
+
+
+def smr1(model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
+    """SMR1 (eq. 5): frequency moments with the nominal eigenvectors, exact for that model.
+
+    Parameters
+    ----------
+    model : assembled model.
+    joints : Gamma laws of the joints' normalised moduli.
+    count : number of modes.
+    sens : precomputed `sensitivities` (the nominal solve is then not repeated).
+
+    Returns
+    -------
+    FrequencyMoments
+        ``mean_hz``, ``std_hz`` of the first ``count`` modes; ``proximity`` holds PF_k.
+    """
+    _check(model, joints)
+    sens = sens or sensitivities(model, count)
+    r = joints.random
+    if r.sum() <= TENSOR_LIMIT:
+        # The tensor Gauss rule integrates sqrt of the linear form to about 1e-10 for CoV <= 0.22
+        # (tests compare it with the exact integral) at a fraction of the cost.
+        gamma, weights = expectation_rule(joints)
+        f = np.sqrt(sens.rest[:count] + gamma @ sens.joints[:count].T) / TWO_PI
+        mean = weights @ f
+        std = np.sqrt(weights @ (f - mean) ** 2)
+    else:
+        mean, std = np.empty(count), np.empty(count)
+        for k in range(count):
+            constant = sens.rest[k] + sens.joints[k, ~r].sum()
+            m, s = sqrt_moments(constant, sens.joints[k, r], joints.shape[r], joints.scale[r])
+            mean[k], std[k] = m / TWO_PI, s / TWO_PI
+    lam_mean, lam_std = eigenvalue_moments(sens, joints)
+    return FrequencyMoments(mean, std, "smr1", sens.modes.frequency_hz[:count],
+                            proximity=proximity_factor(lam_mean, lam_std)[:count],
+                            dispersion=dispersion(sens, joints)[:count])
+
+
+def eigenvector_derivatives(model, sens: Sensitivities, modes: np.ndarray, joint_index: np.ndarray) -> np.ndarray:
+    """Nelson's eigenvector derivatives ``dphi_k / dgamma_j`` at the nominal point.
+
+    For each mode, ``(K - lambda_k M) v = -(K_j - lambda_kj M) phi_k`` is solved with ``v_p = 0`` at
+    the dof ``p`` of largest ``|phi_k|``, which removes the singularity; then ``dphi = v + c phi_k``
+    with ``c = -phi_k^T M v`` keeps the mass normalisation. One sparse factorisation per mode,
+    shared by all joints. Requires distinct eigenvalues.
+
+    Returns
+    -------
+    (len(modes), n_dof, len(joint_index)) derivatives.
+    """
+    k_nominal = model.stiffness()
+    mass = model.mass
+    n = model.size
+    out = np.empty((len(modes), n, len(joint_index)))
+    for row, k in enumerate(modes):
+        lam = sens.modes.eigenvalues[k]
+        phi = sens.modes.shapes[:, k]
+        p = int(np.abs(phi).argmax())
+        keep = np.ones(n)
+        keep[p] = 0.0
+        mask = sp.diags(keep)
+        pin = sp.csr_matrix(([1.0], ([p], [p])), shape=(n, n))
+        system = (mask @ (k_nominal - lam * mass) @ mask + pin).tocsc()
+        rhs = np.stack([-(model.stiffness_joints[j] @ phi - sens.joints[k, j] * (mass @ phi))
+                        for j in joint_index], axis=1)
+        rhs[p] = 0.0
+        v = spla.splu(system).solve(rhs)
+        c = -(phi @ (mass @ v))
+        out[row] = v + np.outer(phi, c)
+    return out
+
+
+def _smr2_modes(model, joints: JointModel, sens: Sensitivities, modes: np.ndarray, rayleigh: bool,
+                seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frequency mean and std of the given modes by SMR2 (eq. 6-7)."""
+    r = np.flatnonzero(joints.random)
+    if r.size == 0:
+        f = sens.modes.frequency_hz[modes]
+        return f.copy(), np.zeros(len(modes))
+    derivatives = eigenvector_derivatives(model, sens, modes, r)
+    gamma, weights = expectation_rule(joints, seed)
+    coeff = np.concatenate([np.ones((len(gamma), 1)), gamma[:, r] - 1.0], axis=1)  # (G, 1 + r)
+    mean, std = np.empty(len(modes)), np.empty(len(modes))
+    for row, k in enumerate(modes):
+        basis = np.concatenate([sens.modes.shapes[:, [k]], derivatives[row]], axis=1)  # (n, 1 + r)
+        b = basis.shape[1]
+        pairs_x = np.repeat(basis, b, axis=1)
+        pairs_y = np.tile(basis, (1, b))
+        rest, per_joint = joint_energies(model, pairs_x, pairs_y)
+        k_rest = rest.reshape(b, b)
+        k_joint = per_joint.reshape(-1, b, b)
+        stiff = k_rest[None] + np.einsum("gj,jab->gab", gamma, k_joint)
+        numerator = np.einsum("ga,gab,gb->g", coeff, stiff, coeff)
+        if rayleigh:
+            m_red = basis.T @ (model.mass @ basis)
+            numerator = numerator / np.einsum("ga,ab,gb->g", coeff, m_red, coeff)
+        f = np.sqrt(np.clip(numerator, 0.0, None)) / TWO_PI
+        mean[row] = weights @ f
+        std[row] = np.sqrt(weights @ (f - mean[row]) ** 2)
+    return mean, std
+
+
+def smr2(model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed: int = 0,
+         sens: Sensitivities | None = None) -> FrequencyMoments:
+    """SMR2 (eq. 6-7) on every mode: first-order eigenvectors, eigenvalue as a Rayleigh quotient.
+
+    ``rayleigh=False`` evaluates eq. (6) as printed (``phi^T K(gamma) phi``, unnormalised).
+    ``seed`` only matters above `workbench.stochastic.TENSOR_LIMIT` random joints (QMC rule).
+    """
+    _check(model, joints)
+    sens = sens or sensitivities(model, count)
+    mean, std = _smr2_modes(model, joints, sens, np.arange(count), rayleigh, seed)
+    lam_mean, lam_std = eigenvalue_moments(sens, joints)
+    return FrequencyMoments(mean, std, "smr2", sens.modes.frequency_hz[:count],
+                            proximity=proximity_factor(lam_mean, lam_std)[:count],
+                            dispersion=dispersion(sens, joints)[:count], refined=np.ones(count, bool))
+
+
+def adaptive(model, joints: JointModel, count: int = 10, proximity_threshold: float = PROXIMITY_THRESHOLD,
+             dispersion_threshold: float = DISPERSION_THRESHOLD, seed: int = 0,
+             sens: Sensitivities | None = None) -> FrequencyMoments:
+    """The strategy of Figure 10: SMR1 on all modes, then SMR2 where ``PF_k < proximity_threshold``
+    (close modes) or ``D_k > dispersion_threshold`` (a widely varying joint); see the module notes."""
+    sens = sens or sensitivities(model, count)
+    first = smr1(model, joints, count, sens)
+    refined = (first.proximity < proximity_threshold) | (first.dispersion > dispersion_threshold)
+    mean, std = first.mean_hz.copy(), first.std_hz.copy()
+    if np.any(refined):
+        modes = np.flatnonzero(refined)
+        mean[modes], std[modes] = _smr2_modes(model, joints, sens, modes, True, seed)
+    return FrequencyMoments(mean, std, "adaptive", first.nominal_hz, proximity=first.proximity,
+                            dispersion=first.dispersion, refined=refined)
+
+
+def pert2(model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
+    """Second-order perturbation: mean to second order, variance to first order, of the frequencies.
+
+    With ``f = sqrt(lambda) / 2 pi``, ``df/dgamma_j = lambda_kj / (4 pi sqrt(lambda))`` and
+    ``d2f/dgamma_j^2 = lambda''_jj / (4 pi sqrt(lambda)) - lambda_kj^2 / (8 pi lambda^1.5)``, where
+    ``lambda''_jj = 2 phi^T (K_j - lambda_kj M) dphi/dgamma_j``. Then ``E[f] = f + 1/2 sum_j
+    d2f/dgamma_j^2 cov_j^2`` and ``Var[f] = sum_j (df/dgamma_j)^2 cov_j^2``.
+    """
+    _check(model, joints)
+    sens = sens or sensitivities(model, count)
+    r = np.flatnonzero(joints.random)
+    lam = sens.modes.eigenvalues[:count]
+    f0 = np.sqrt(lam) / TWO_PI
+    if r.size == 0:
+        return FrequencyMoments(f0.copy(), np.zeros(count), "pert2", f0)
+    derivatives = eigenvector_derivatives(model, sens, np.arange(count), r)
+    mean, std = np.empty(count), np.empty(count)
+    for k in range(count):
+        phi = sens.modes.shapes[:, k]
+        first = sens.joints[k, r]
+        second = np.array([2.0 * phi @ (model.stiffness_joints[j] @ derivatives[k][:, c]
+                                        - first[c] * (model.mass @ derivatives[k][:, c]))
+                           for c, j in enumerate(r)])
+        df = first / (2.0 * TWO_PI * np.sqrt(lam[k]))
+        d2f = second / (2.0 * TWO_PI * np.sqrt(lam[k])) - first**2 / (4.0 * TWO_PI * lam[k] ** 1.5)
+        cov2 = joints.cov[r] ** 2
+        mean[k] = f0[k] + 0.5 * d2f @ cov2
+        std[k] = np.sqrt(df**2 @ cov2)
+    return FrequencyMoments(mean, std, "pert2", f0)
+
+
+METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
+
+
+def propagate(model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
+              workers: int = 1, progress: bool = False) -> FrequencyMoments:
+    """Frequency moments by ``method`` (one of `METHODS`); ``samples`` and ``workers`` are for ``mc``."""
+    if method == "smr1":
+        return smr1(model, joints, count)
+    if method == "smr2":
+        return smr2(model, joints, count, seed=seed)
+    if method == "adaptive":
+        return adaptive(model, joints, count, seed=seed)
+    if method == "pert2":
+        return pert2(model, joints, count)
+    if method == "mc":
+        from .stochastic import monte_carlo
+
+        return monte_carlo(model, joints, count, samples, seed, workers, progress).moments
+    raise ValueError(f"method: {method!r} is not one of {', '.join(METHODS)}")
