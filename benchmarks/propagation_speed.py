@@ -62,7 +62,7 @@ def main() -> None:
           f"worst MAC {mc.min_mac.min():.3f})")
     for name, t in (("smr1", t_smr1), ("smr2", t_smr2), ("adaptive", t_adapt)):
         print(f"{name:10s} {t:10.4f} {t_mc / t:12.0f}")
-    print(f"adaptive refined modes {list(np.flatnonzero(result.refined) + 1)}")
+    print(f"adaptive refined modes {[int(k) + 1 for k in np.flatnonzero(result.refined)]}")
     ok1, ok2 = t_mc / t_smr1 >= 1000, t_mc / t_adapt >= 100
     print(f"targets: MC/SMR1 >= 1000 {'met' if ok1 else 'MISSED'}; MC/adaptive >= 100 {'met' if ok2 else 'MISSED'}")
 
