@@ -74,3 +74,46 @@ def test_console_entry_point_runs_as_a_module(frame_file, tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "o" / "modes.csv").exists()
+
+
+def test_propagate_writes_moments_and_run_record(tmp_path):
+    import json
+
+    from workbench.smr import adaptive
+    from workbench.stochastic import joint_model
+
+    frame = multibay_frame(1, 1, element_length=0.05)
+    path = tmp_path / "frame.toml"
+    write_frame(frame, path)
+    out = tmp_path / "out"
+    assert main(["propagate", str(path), "--method", "adaptive", "--count", "4", "--out", str(out)]) == 0
+    with open(out / "moments.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["mode", "mean_hz", "std_hz"] and len(rows) == 4
+    model = assemble(frame)
+    expected = adaptive(model, joint_model(frame), 4)
+    np.testing.assert_allclose([float(r["std_hz"]) for r in rows], expected.std_hz, rtol=1e-12)
+    run = json.loads((out / "run.json").read_text())
+    assert run["method"] == "adaptive" and run["samples"] == 0 and run["wall_time_s"] > 0
+
+
+def test_propagate_monte_carlo_is_seeded(tmp_path):
+    frame = multibay_frame(1, 1, element_length=0.05)
+    path = tmp_path / "frame.toml"
+    write_frame(frame, path)
+    texts = []
+    for name in ("a", "b"):
+        assert main(["propagate", str(path), "--method", "mc", "--samples", "30", "--seed", "9", "--count", "3",
+                     "--out", str(tmp_path / name)]) == 0
+        texts.append((tmp_path / name / "moments.csv").read_text())
+    assert texts[0] == texts[1]
+
+
+def test_propagate_refuses_a_frame_without_random_joints(tmp_path, capsys):
+    frame = multibay_frame(1, 1, element_length=0.05)
+    frame = frame.__class__(**{**frame.__dict__, "joints": ()})
+    path = tmp_path / "frame.toml"
+    write_frame(frame, path)
+    assert main(["propagate", str(path), "--method", "smr1", "--out", str(tmp_path / "o")]) == 2
+    assert "no joint has a cov > 0" in capsys.readouterr().err
+    assert main(["propagate", str(path), "--method", "smr9", "--out", str(tmp_path / "o")]) == 2
