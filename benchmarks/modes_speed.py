@@ -8,7 +8,6 @@ timed apart; each time is the best of ``--repeat`` runs.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
@@ -17,17 +16,11 @@ from workbench.assembly import assemble
 from workbench.frame import read_frame
 from workbench.generate import multibay_for_dofs
 from workbench.modal import model_modes
+from timing import best_of
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def best_of(repeat: int, function) -> tuple[float, object]:
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def main() -> None:

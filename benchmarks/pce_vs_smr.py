@@ -98,6 +98,7 @@ from workbench.frame import read_frame  # noqa: E402
 from workbench.modal import model_modes  # noqa: E402
 from workbench.smr import adaptive, smr1, smr2  # noqa: E402
 from workbench.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference, tracked_frequencies  # noqa: E402
+from timing import best_of  # noqa: E402
 
 try:
     import chaospy
@@ -137,14 +138,6 @@ def errors(moments_mean: np.ndarray, moments_std: np.ndarray, reference: Frequen
     return float(mean_err), float(std_err)
 
 
-def best_of(repeat: int, function):
-    """Smallest wall time of ``repeat`` calls and the last result."""
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 # ----------------------------------------------------------------------------- PCE (chaospy)

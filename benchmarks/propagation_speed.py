@@ -28,17 +28,11 @@ from workbench.frame import read_frame  # noqa: E402
 from workbench.generate import multibay_for_dofs  # noqa: E402
 from workbench.smr import adaptive, sensitivities, smr1, smr2  # noqa: E402
 from workbench.stochastic import joint_model, monte_carlo  # noqa: E402
+from timing import best_of  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def best_of(repeat: int, function) -> tuple[float, object]:
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def main() -> None:

@@ -331,37 +331,36 @@ def parse_frame(data: dict[str, Any], source: str = "<frame>") -> Frame:
     element_length = top.number("element_length", default=DEFAULT_ELEMENT_LENGTH, positive=True)
     timoshenko = theory == "timoshenko"
 
+    def named_tables(key: str, what: str) -> dict[str, Any]:
+        tables = _Reader(source, key, data[key], None, set())
+        if not tables.table:
+            tables.fail("", f"at least one {what} is required")
+        return tables.table
+
+    def timoshenko_only(r: _Reader, key: str, **limits: Any) -> float | None:
+        # optional for Euler-Bernoulli, required for Timoshenko
+        if not (r.has(key) or timoshenko):
+            return None
+        if not r.has(key):
+            r.fail(key, "required when beam_theory = \"timoshenko\"")
+        return r.number(key, **limits)
+
     materials: dict[str, Material] = {}
-    mat_tables = _Reader(source, "materials", data["materials"], None, set())
-    if not mat_tables.table:
-        mat_tables.fail("", "at least one material is required")
-    for mname, table in mat_tables.table.items():
+    for mname, table in named_tables("materials", "material").items():
         r = _Reader(source, f"materials.{mname}", table,
                     {"youngs_modulus", "density", "poisson_ratio"}, {"youngs_modulus", "density"})
-        nu = None
-        if r.has("poisson_ratio") or timoshenko:
-            if not r.has("poisson_ratio"):
-                r.fail("poisson_ratio", "required when beam_theory = \"timoshenko\"")
-            nu = r.number("poisson_ratio", below=0.5)
-            if nu <= -1.0:
-                r.fail("poisson_ratio", f"must lie in (-1, 0.5), got {nu:g}")
+        nu = timoshenko_only(r, "poisson_ratio", below=0.5)
+        if nu is not None and nu <= -1.0:
+            r.fail("poisson_ratio", f"must lie in (-1, 0.5), got {nu:g}")
         materials[mname] = Material(mname, r.number("youngs_modulus", positive=True),
                                     r.number("density", positive=True), nu)
 
     sections: dict[str, Section] = {}
-    sec_tables = _Reader(source, "sections", data["sections"], None, set())
-    if not sec_tables.table:
-        sec_tables.fail("", "at least one section is required")
-    for sname, table in sec_tables.table.items():
+    for sname, table in named_tables("sections", "section").items():
         r = _Reader(source, f"sections.{sname}", table,
                     {"area", "second_moment", "shear_coefficient"}, {"area", "second_moment"})
-        kappa = None
-        if r.has("shear_coefficient") or timoshenko:
-            if not r.has("shear_coefficient"):
-                r.fail("shear_coefficient", "required when beam_theory = \"timoshenko\"")
-            kappa = r.number("shear_coefficient", positive=True)
-        sections[sname] = Section(sname, r.number("area", positive=True),
-                                  r.number("second_moment", positive=True), kappa)
+        sections[sname] = Section(sname, r.number("area", positive=True), r.number("second_moment", positive=True),
+                                  timoshenko_only(r, "shear_coefficient", positive=True))
 
     points: dict[str, tuple[float, float]] = {}
     pts = _Reader(source, "points", data["points"], None, set())
