@@ -36,6 +36,7 @@ __all__ = [
     "parse_frame",
     "frame_to_toml",
     "write_frame",
+    "toml_string",
     "member_length",
     "locate_point",
 ]
@@ -487,9 +488,22 @@ def parse_frame(data: dict[str, Any], source: str = "<frame>") -> Frame:
                  element_length=element_length, description=description, source=source)
 
 
+def toml_string(value: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped."""
+    out = []
+    for ch in value:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
 def _toml_value(value: Any) -> str:
     if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+        return toml_string(value)
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if value == FIXED:

@@ -1,0 +1,431 @@
+"""Test campaigns (CONTRACTS.md section 2): directory <-> validated record of tidy pandas tables.
+
+A campaign is a directory with ``campaign.toml``, the nominal ``frame.toml`` and, when it has
+tests, ``design.csv`` (one row per test), measured FRFs in long form (``frf.csv`` or
+``frf.parquet``: one row per test, sensor and frequency line), optionally ``modes.csv`` (modal
+parameters already extracted) or ``moments.csv`` (published moments only).
+
+`load_campaign` rejects every malformation the contract lists with a `CampaignError` naming the
+file, the row (its line in the file) and the problem; it never changes the files. With
+`frame.toml` it is the only module, with `report`, that imports pandas.
+"""
+
+from __future__ import annotations
+
+
+import tomllib
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .frame import Frame, FrameFileError, frame_to_toml, read_frame, toml_string
+from .modal import QUANTITIES, FRFSet
+from .outputs import write_outputs
+
+__all__ = [
+    "CampaignError",
+    "Factor",
+    "Campaign",
+    "FACTOR_KINDS",
+    "FRF_COLUMNS",
+    "MODES_COLUMNS",
+    "MOMENTS_COLUMNS",
+    "load_campaign",
+    "write_campaign",
+    "campaign_toml",
+    "frf_set",
+]
+
+FACTOR_KINDS = ("tightening", "amplitude", "other")
+REFERENCES = ("force", "voltage")
+FRF_COLUMNS = ("test_id", "sensor", "frequency_hz", "real", "imag")
+MODES_COLUMNS = ("test_id", "mode", "frequency_hz", "damping_ratio")
+MOMENTS_COLUMNS = ("mode", "mean_hz", "std_hz")
+_CAMPAIGN_KEYS = {"name", "description", "frame", "quantity", "reference", "synthetic", "source", "factors"}
+
+
+class CampaignError(ValueError):
+    """A campaign breaks the contract; one line: ``file: [line N: ]problem``."""
+
+
+@dataclass(frozen=True)
+class Factor:
+    """A column of the design: its kind, the joint it acts on (tightening) and its ordered levels."""
+
+    name: str
+    kind: str
+    levels: dict[str, str]  # level key -> description, in increasing order
+    joint: str | None = None
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A validated test campaign.
+
+    Attributes
+    ----------
+    name, description, source : free text from campaign.toml.
+    quantity : what ``frf`` holds: receptance (m/N), mobility (m/s/N) or accelerance (m/s2/N).
+    reference : "force" or "voltage" (FRF over shaker drive voltage: levels not comparable).
+    synthetic : True for simulated data, False for measurements.
+    frame : the nominal model of the tested article.
+    factors : the design's factors, in campaign.toml order.
+    design : one row per test: ``test_id`` and one column per factor (level keys as strings).
+    frf : long form, columns `FRF_COLUMNS`, or None.
+    modes : columns `MODES_COLUMNS`, or None.
+    moments : columns `MOMENTS_COLUMNS`, or None.
+    path : the directory it was loaded from (None when built in memory).
+    """
+
+    name: str
+    frame: Frame
+    synthetic: bool
+    quantity: str = "accelerance"
+    reference: str = "force"
+    description: str = ""
+    source: str = ""
+    factors: tuple[Factor, ...] = ()
+    design: pd.DataFrame | None = None
+    frf: pd.DataFrame | None = None
+    modes: pd.DataFrame | None = None
+    moments: pd.DataFrame | None = None
+    frame_file: str = "frame.toml"
+    path: Path | None = field(default=None, compare=False)
+
+    @property
+    def test_ids(self) -> list:
+        return [] if self.design is None else self.design["test_id"].tolist()
+
+    def factor(self, name: str) -> Factor:
+        for f in self.factors:
+            if f.name == name:
+                return f
+        raise KeyError(f"{self.path or self.name}: factors: no factor named {name!r}")
+
+
+def _fail(path: Path | str, problem: str, line: int | None = None) -> None:
+    where = f"line {line}: " if line is not None else ""
+    raise CampaignError(f"{path}: {where}{problem}")
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        _fail(path, "required file is missing")
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        _fail(path, f"not valid TOML: {exc}")
+    except UnicodeDecodeError:
+        _fail(path, "not UTF-8 text")
+
+
+def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, ...]) -> pd.DataFrame:
+    """Read a CSV (or parquet) with exactly ``columns``; numbers checked finite; rows keep file lines."""
+    try:
+        if path.suffix == ".parquet":
+            table = pd.read_parquet(path)
+            table[list(set(text_columns) & set(table.columns))] = table[list(set(text_columns) & set(table.columns))].astype(str)
+        else:
+            with warnings.catch_warnings():
+                # a row longer than the header: pandas only warns and drops the extra field
+                warnings.simplefilter("error", pd.errors.ParserWarning)
+                table = pd.read_csv(path, dtype={c: str for c in text_columns}, keep_default_na=False,
+                                    na_values=[], skipinitialspace=True, index_col=False)
+    except (pd.errors.ParserError, pd.errors.ParserWarning, pd.errors.EmptyDataError, ValueError, OSError) as exc:
+        _fail(path, f"cannot be read as a table: {' '.join(str(exc).split())}")
+    missing = [c for c in columns if c not in table.columns]
+    extra = [c for c in table.columns if c not in columns]
+    if missing:
+        _fail(path, f"missing column(s) {', '.join(missing)} (expected {', '.join(columns)})")
+    if extra:
+        _fail(path, f"unknown column(s) {', '.join(map(str, extra))} (expected {', '.join(columns)})")
+    table = table[list(columns)].reset_index(drop=True)
+    for column in columns:
+        if column in text_columns:
+            blank = table[column].astype(str).str.strip() == ""
+            if blank.any():
+                _fail(path, f"{column} is empty", _line(path, int(np.flatnonzero(blank)[0])))
+            table[column] = table[column].astype(str).str.strip()
+            continue
+        values = pd.to_numeric(table[column], errors="coerce")
+        bad = ~np.isfinite(values.to_numpy(dtype=float))
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            _fail(path, f"{column} = {str(table[column].iloc[row])!r} is not a finite number", _line(path, row))
+        table[column] = values.astype(float)
+    return table
+
+
+def _line(path: Path, row: int) -> int | None:
+    """Line in the file of data row ``row`` (header on line 1); None for parquet."""
+    return None if path.suffix == ".parquet" else row + 2
+
+
+def _check_duplicates(table: pd.DataFrame, keys: list[str], path: Path) -> None:
+    dup = table.duplicated(keys, keep="first")
+    if dup.any():
+        row = int(np.flatnonzero(dup)[0])
+        what = ", ".join(f"{k} = {table[k].iloc[row]}" for k in keys)
+        _fail(path, f"duplicated row ({what})", _line(path, row))
+
+
+def _check_tests(table: pd.DataFrame, path: Path, design_ids: set[str], design_file: Path) -> None:
+    unknown = ~table["test_id"].isin(design_ids)
+    if unknown.any():
+        row = int(np.flatnonzero(unknown)[0])
+        _fail(path, f"test_id {table['test_id'].iloc[row]} is not in {design_file.name}", _line(path, row))
+
+
+def _integer_ids(*tables: pd.DataFrame | None) -> None:
+    """Make test_id integers in every table when all of them are integers (read as text)."""
+    present = [t for t in tables if t is not None]
+    values = pd.concat([t["test_id"] for t in present]) if present else pd.Series([], dtype=str)
+    if len(values) and values.str.fullmatch(r"[+-]?\d+").all():
+        for t in present:
+            t["test_id"] = t["test_id"].astype(np.int64)
+
+
+def _parse_factors(data: Any, path: Path, frame: Frame) -> tuple[Factor, ...]:
+    if not isinstance(data, dict):
+        _fail(path, "factors: expected tables [factors.NAME]")
+    factors = []
+    for name, table in data.items():
+        where = f"factors.{name}"
+        if not isinstance(table, dict):
+            _fail(path, f"{where}: expected a table")
+        unknown = sorted(set(table) - {"kind", "joint", "levels"})
+        if unknown:
+            _fail(path, f"{where}.{unknown[0]}: unknown key (allowed: joint, kind, levels)")
+        kind = table.get("kind")
+        if kind not in FACTOR_KINDS:
+            _fail(path, f"{where}.kind: {kind!r} is not one of {', '.join(FACTOR_KINDS)}")
+        joint = table.get("joint")
+        if kind == "tightening":
+            if joint is None:
+                _fail(path, f"{where}.joint: required for a tightening factor (the frame joint it acts on)")
+            if joint not in frame.joint_names:
+                _fail(path, f"{where}.joint: {joint!r} is not a joint of {frame.source} "
+                            f"(joints: {', '.join(frame.joint_names) or 'none'})")
+        elif joint is not None:
+            _fail(path, f"{where}.joint: only tightening factors name a joint")
+        levels = table.get("levels")
+        if not isinstance(levels, dict) or not levels:
+            _fail(path, f"{where}.levels: expected a non-empty table of level = description")
+        factors.append(Factor(name, kind, {str(k): str(v) for k, v in levels.items()}, joint))
+    return tuple(factors)
+
+
+def load_campaign(directory: str | Path) -> Campaign:
+    """Load and validate a campaign directory (CONTRACTS.md section 2). The files are only read.
+
+    Raises
+    ------
+    CampaignError
+        One line naming the file, the line and the problem.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        _fail(directory, "is not a campaign directory")
+    path = directory / "campaign.toml"
+    data = _read_toml(path)
+    unknown = sorted(set(data) - _CAMPAIGN_KEYS)
+    if unknown:
+        _fail(path, f"{unknown[0]}: unknown key (allowed: {', '.join(sorted(_CAMPAIGN_KEYS))})")
+    for key in ("name", "frame", "synthetic"):
+        if key not in data:
+            expected = "true or false" if key == "synthetic" else "a string"
+            _fail(path, f"{key}: required key is missing (expected {expected})")
+    for key in ("name", "frame", "description", "source"):
+        if key in data and not isinstance(data[key], str):
+            _fail(path, f"{key}: expected a string, got {data[key]!r}")
+    if not isinstance(data["synthetic"], bool):
+        _fail(path, f"synthetic: expected true or false, got {data['synthetic']!r}")
+    quantity = data.get("quantity", "accelerance")
+    if quantity not in QUANTITIES:
+        _fail(path, f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+    reference = data.get("reference", "force")
+    if reference not in REFERENCES:
+        _fail(path, f"reference: {reference!r} is not one of {', '.join(REFERENCES)}")
+    try:
+        frame = read_frame(directory / data["frame"])
+    except FrameFileError as exc:
+        raise CampaignError(str(exc)) from None
+    factors = _parse_factors(data.get("factors", {}), path, frame)
+
+    frf_csv, frf_parquet = directory / "frf.csv", directory / "frf.parquet"
+    if frf_csv.exists() and frf_parquet.exists():
+        _fail(directory, "holds both frf.csv and frf.parquet; keep one")
+    frf_path = frf_csv if frf_csv.exists() else frf_parquet if frf_parquet.exists() else None
+    if frf_path is not None and "quantity" not in data:
+        _fail(path, "quantity: required key is missing (expected receptance, mobility or accelerance)")
+    design_path = directory / "design.csv"
+    modes_path, moments_path = directory / "modes.csv", directory / "moments.csv"
+
+    design = frf = modes = moments = None
+    if design_path.exists():
+        columns = ("test_id",) + tuple(f.name for f in factors)
+        design = _read_table(design_path, columns, columns)
+        _check_duplicates(design, ["test_id"], design_path)
+        for factor in factors:
+            bad = ~design[factor.name].isin(factor.levels)
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                _fail(design_path, f"{factor.name} = {design[factor.name].iloc[row]!r} is not a declared "
+                                   f"level (levels: {', '.join(factor.levels)})", _line(design_path, row))
+    elif frf_path is not None or modes_path.exists():
+        _fail(design_path, "required file is missing (the campaign has tests)")
+    ids = set(design["test_id"]) if design is not None else set()
+
+    if frf_path is not None:
+        frf = _read_table(frf_path, FRF_COLUMNS, ("test_id", "sensor"))
+        _check_tests(frf, frf_path, ids, design_path)
+        sensors = {s.name for s in frame.sensors}
+        bad = ~frf["sensor"].isin(sensors)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            _fail(frf_path, f"sensor {frf['sensor'].iloc[row]!r} is not a sensor of {frame.source} "
+                            f"(sensors: {', '.join(sorted(sensors)) or 'none'})", _line(frf_path, row))
+        _check_duplicates(frf, ["test_id", "sensor", "frequency_hz"], frf_path)
+        step = frf.groupby(["test_id", "sensor"], sort=False)["frequency_hz"].diff()
+        bad = (step <= 0).to_numpy()
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            _fail(frf_path, f"frequency_hz = {frf['frequency_hz'].iloc[row]:g} does not increase within "
+                            f"test {frf['test_id'].iloc[row]}, sensor {frf['sensor'].iloc[row]}",
+                  _line(frf_path, row))
+        if (frf["frequency_hz"] < 0).any():
+            row = int(np.flatnonzero(frf["frequency_hz"] < 0)[0])
+            _fail(frf_path, "frequency_hz is negative", _line(frf_path, row))
+        without = sorted(ids - set(frf["test_id"]), key=str)
+        if without:
+            _fail(frf_path, f"test {without[0]} of {design_path.name} has no rows")
+        if frame.excitation is None:
+            _fail(frame.source, "excitation: required when a campaign has FRFs")
+
+    if modes_path.exists():
+        modes = _read_table(modes_path, MODES_COLUMNS, ("test_id",))
+        _check_tests(modes, modes_path, ids, design_path)
+        _check_duplicates(modes, ["test_id", "mode"], modes_path)
+        _check_values(modes, modes_path, {"mode": "integer >= 1", "frequency_hz": "positive",
+                                          "damping_ratio": "in [0, 1)"})
+        modes["mode"] = modes["mode"].astype(np.int64)
+
+    if moments_path.exists():
+        moments = _read_table(moments_path, MOMENTS_COLUMNS, ())
+        _check_duplicates(moments, ["mode"], moments_path)
+        _check_values(moments, moments_path, {"mode": "integer >= 1", "mean_hz": "positive",
+                                              "std_hz": "not negative"})
+        moments["mode"] = moments["mode"].astype(np.int64)
+
+    if design is None and frf is None and modes is None and moments is None:
+        _fail(directory, "holds neither tests (design.csv) nor moments.csv")
+    _integer_ids(design, frf, modes)
+    return Campaign(name=data["name"], frame=frame, synthetic=data["synthetic"], quantity=quantity,
+                    reference=reference, description=data.get("description", ""), source=data.get("source", ""),
+                    factors=factors, design=design, frf=frf, modes=modes, moments=moments,
+                    frame_file=data["frame"], path=directory)
+
+
+def _check_values(table: pd.DataFrame, path: Path, rules: dict[str, str]) -> None:
+    tests = {
+        "integer >= 1": lambda v: (v >= 1) & (v == np.round(v)),
+        "positive": lambda v: v > 0,
+        "not negative": lambda v: v >= 0,
+        "in [0, 1)": lambda v: (v >= 0) & (v < 1),
+    }
+    for column, rule in rules.items():
+        ok = tests[rule](table[column].to_numpy())
+        if not ok.all():
+            row = int(np.flatnonzero(~ok)[0])
+            _fail(path, f"{column} = {table[column].iloc[row]:g} must be {rule}", _line(path, row))
+
+
+def campaign_toml(campaign: Campaign) -> str:
+    """The ``campaign.toml`` text of ``campaign``."""
+    out = [f"name = {toml_string(campaign.name)}"]
+    if campaign.description:
+        out.append(f"description = {toml_string(campaign.description)}")
+    out += [f"frame = {toml_string(campaign.frame_file)}", f"quantity = {toml_string(campaign.quantity)}",
+            f"reference = {toml_string(campaign.reference)}",
+            f"synthetic = {'true' if campaign.synthetic else 'false'}"]
+    if campaign.source:
+        out.append(f"source = {toml_string(campaign.source)}")
+    for factor in campaign.factors:
+        out += ["", f"[factors.{factor.name}]", f"kind = {toml_string(factor.kind)}"]
+        if factor.joint is not None:
+            out.append(f"joint = {toml_string(factor.joint)}")
+        levels = ", ".join(f"{toml_string(k)} = {toml_string(v)}" for k, v in factor.levels.items())
+        out.append(f"levels = {{ {levels} }}")
+    return "\n".join(out) + "\n"
+
+
+def _csv(table: pd.DataFrame, columns: tuple[str, ...]) -> str:
+    return table[list(columns)].to_csv(index=False, float_format="%.17g", lineterminator="\n")
+
+
+def write_campaign(campaign: Campaign, directory: str | Path, force: bool = False,
+                   frf_format: str = "csv", frf_dtype: str = "float64") -> Path:
+    """Write ``campaign`` as a contract directory, all files or none.
+
+    Parameters
+    ----------
+    frf_format : "csv" or "parquet" (smaller; the contract accepts either).
+    frf_dtype : "float64" or "float32" for the parquet FRF values (float32 keeps 7 digits: for
+        measured data with noise well above 1e-7 this loses nothing).
+    """
+    directory = Path(directory)
+    files: dict[str, str | bytes] = {"campaign.toml": campaign_toml(campaign),
+                                     campaign.frame_file: frame_to_toml(campaign.frame)}
+    if campaign.design is not None:
+        files["design.csv"] = _csv(campaign.design, ("test_id",) + tuple(f.name for f in campaign.factors))
+    if campaign.frf is not None:
+        if frf_format == "parquet":
+            import io
+
+            table = campaign.frf[list(FRF_COLUMNS)].copy()
+            table[["frequency_hz", "real", "imag"]] = table[["frequency_hz", "real", "imag"]].astype(frf_dtype)
+            if frf_dtype == "float32":
+                table["frequency_hz"] = campaign.frf["frequency_hz"].astype("float64")
+            buffer = io.BytesIO()
+            table.to_parquet(buffer, index=False)
+            files["frf.parquet"] = buffer.getvalue()
+        elif frf_format == "csv":
+            files["frf.csv"] = _csv(campaign.frf, FRF_COLUMNS)
+        else:
+            raise ValueError(f"frf_format: {frf_format!r} is not csv or parquet")
+    if campaign.modes is not None:
+        files["modes.csv"] = _csv(campaign.modes, MODES_COLUMNS)
+    if campaign.moments is not None:
+        files["moments.csv"] = _csv(campaign.moments, MOMENTS_COLUMNS)
+    write_outputs(directory, files, force=force)
+    return directory
+
+
+def frf_set(campaign: Campaign, test_id) -> FRFSet:
+    """The FRFs of one test as arrays: sensors in the frame's order, one frequency axis.
+
+    Raises
+    ------
+    CampaignError
+        The test is unknown, or its sensors do not share one frequency axis.
+    """
+    if campaign.frf is None:
+        _fail(campaign.path or campaign.name, "has no FRFs (frf.csv)")
+    rows = campaign.frf[campaign.frf["test_id"] == test_id]
+    if rows.empty:
+        _fail(campaign.path or campaign.name, f"frf: no rows for test_id {test_id!r}")
+    order = [s.name for s in campaign.frame.sensors if s.name in set(rows["sensor"])]
+    curves = [rows[rows["sensor"] == s] for s in order]
+    axis = curves[0]["frequency_hz"].to_numpy()
+    for s, c in zip(order, curves):
+        if c.shape[0] != axis.size or not np.array_equal(c["frequency_hz"].to_numpy(), axis):
+            _fail(campaign.path or campaign.name, f"frf: test {test_id}: sensor {s} has another frequency axis")
+    values = np.stack([c["real"].to_numpy() + 1j * c["imag"].to_numpy() for c in curves])
+    return FRFSet(axis.astype(float), values, tuple(order), campaign.quantity)
+
+
+
