@@ -29,6 +29,7 @@ __all__ = [
 # dofs; above it sparse shift-invert Lanczos is faster for the first tens of modes (measured: 7 ms
 # against 14 ms at 318 dofs, 6 ms against 28 ms at 489, single-threaded BLAS).
 DENSE_LIMIT = 200
+DENSE_THREAD_LIMIT = 4000  # dofs; above it dense LAPACK runs single-threaded (see solve_modes)
 # Shift of the shift-invert solver, (rad/s)^2: below zero so that K - sigma M is definite for
 # free-free structures, and small (0.1 Hz) because Lanczos converges fastest, and most accurately,
 # when the shift sits just under the wanted eigenvalues.
@@ -132,16 +133,25 @@ def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndar
     if method == "dense":
         k = stiffness.toarray() if sp.issparse(stiffness) else np.asarray(stiffness)
         m = mass.toarray() if sp.issparse(mass) else np.asarray(mass)
+        guard = min(n, max(2 * count, count + 8))
+        # OpenBLAS 0.3.31's threaded sygvx segfaulted at 20 000 dofs here; single-threaded it
+        # completes (19 min), so large dense solves run on one thread.
+        from threadpoolctl import threadpool_limits
+
         try:
-            values, vectors = sla.eigh(k, m, subset_by_index=[0, count - 1])
-            # LAPACK's error is absolute (about eps * ||K||), which leaves the low modes of a frame
-            # with stiff axial dofs at 1e-7 relative; one step of inverse subspace iteration with
-            # Rayleigh-Ritz brings them to the sparse solver's 1e-10.
-            factor = sla.cho_factor(k - sigma * m, overwrite_a=True, check_finite=False)
-            vectors = sla.cho_solve(factor, m @ vectors)
-            del factor
-            values, ritz = sla.eigh(vectors.T @ k @ vectors, vectors.T @ m @ vectors)
-            vectors = vectors @ ritz
+            with threadpool_limits(limits=1 if n > DENSE_THREAD_LIMIT else None):
+                values, vectors = sla.eigh(k, m, subset_by_index=[0, guard - 1])
+                # LAPACK's error is absolute (about eps * ||K||): 1e-7 relative on the low modes
+                # of a 400-dof frame with stiff axial dofs, 5e-5 at 20 000 dofs. Two steps of
+                # inverse subspace iteration on guard vectors, each followed by Rayleigh-Ritz,
+                # shrink the vector errors by (lambda_k / lambda_guard)^2.
+                factor = sla.cho_factor(k - sigma * m, check_finite=False)
+                for _ in range(2):
+                    vectors = sla.cho_solve(factor, m @ vectors)
+                    values, ritz = sla.eigh(vectors.T @ k @ vectors, vectors.T @ m @ vectors)
+                    vectors = vectors @ ritz
+                del factor
+            values, vectors = values[:count], vectors[:, :count]
         except np.linalg.LinAlgError as exc:
             raise ValueError(f"singular model: the mass matrix is not positive definite ({exc})") from None
     elif method == "sparse":
