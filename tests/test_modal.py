@@ -133,3 +133,22 @@ def test_sensor_on_a_fixed_dof_is_named():
     model = assemble(read_frame(EXAMPLE)) if EXAMPLE.exists() else pytest.skip("../shared is absent")
     with pytest.raises(ValueError, match="ux at point 'base_left' is a fixed support dof"):
         model.dof("base_left", "ux")
+
+
+def test_a_span_ending_a_rounding_error_before_a_member_end_keeps_the_members_connected():
+    from workbench.frame import parse_frame
+
+    # member "low" is 0.04000000000000002 m long; its joint span ends at 0.04
+    frame = parse_frame({
+        "name": "two collinear bars", "element_length": 0.01,
+        "materials": {"al": {"youngs_modulus": 70e9, "density": 2700.0}},
+        "sections": {"s": {"area": 2.4e-4, "second_moment": 1.28e-9}},
+        "points": {"a": [0.0, 0.23], "b": [0.0, 0.27], "c": [0.0, 0.5], "o": [0.0, 0.0]},
+        "members": [{"name": "base", "start": "o", "end": "a", "material": "al", "section": "s"},
+                    {"name": "low", "start": "a", "end": "b", "material": "al", "section": "s"},
+                    {"name": "up", "start": "b", "end": "c", "material": "al", "section": "s"}],
+        "joints": [{"name": "J", "member": "low", "span": [0.0, 0.04], "youngs_modulus": 30e9}],
+        "supports": [{"point": "o", "ux": "fixed", "uy": "fixed", "rz": "fixed"}],
+    })
+    modes = model_modes(assemble(frame), 3)
+    assert modes.frequency_hz.min() > 1.0  # no disconnected, rigid part

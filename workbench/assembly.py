@@ -204,7 +204,11 @@ def mesh_frame(frame: Frame) -> Mesh:
         merged: list[tuple[float, int | None]] = []
         for s, node in stations:
             if merged and s - merged[-1][0] <= 1e-9 * max(length, 1.0):
-                continue  # a named point wins over a span end at the same place
+                # one station: a named point wins over a span end a rounding error away, on
+                # either side (dropping the point would disconnect the members meeting there)
+                if merged[-1][1] is None and node is not None:
+                    merged[-1] = (s, node)
+                continue
             merged.append((s, node))
         previous = None
         for s, node in merged:

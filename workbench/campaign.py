@@ -387,11 +387,13 @@ def write_campaign(campaign: Campaign, directory: str | Path, force: bool = Fals
             import io
 
             table = campaign.frf[list(FRF_COLUMNS)].copy()
-            table[["frequency_hz", "real", "imag"]] = table[["frequency_hz", "real", "imag"]].astype(frf_dtype)
-            if frf_dtype == "float32":
-                table["frequency_hz"] = campaign.frf["frequency_hz"].astype("float64")
+            table[["real", "imag"]] = table[["real", "imag"]].astype(frf_dtype)
+            frequency = table["frequency_hz"].to_numpy(dtype=float)
+            if np.array_equal(frequency.astype(np.float32).astype(float), frequency):
+                table["frequency_hz"] = frequency.astype(np.float32)  # exact (e.g. multiples of 1/4 Hz)
             buffer = io.BytesIO()
-            table.to_parquet(buffer, index=False)
+            # gzip: noisy FRF values hardly compress, but it is the smallest of pyarrow's codecs here
+            table.to_parquet(buffer, index=False, compression="gzip")
             files["frf.parquet"] = buffer.getvalue()
         elif frf_format == "csv":
             files["frf.csv"] = _csv(campaign.frf, FRF_COLUMNS)
