@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from workbench import circlefit as cf
-from workbench.modal import Modes, modal_frf
+from workbench import extraction as ex
+from workbench.modal import Modes, add_noise, modal_frf, modal_superposition
 
 # tolerances, named (relative)
 NOISE_FREE_FREQUENCY = 1e-6
@@ -121,12 +122,12 @@ def equal_peak_frf(quantity: str) -> np.ndarray:
     p = {"receptance": 0, "mobility": 1, "accelerance": 2}[quantity]
     wr = 2 * np.pi * NATURAL
     constants = 2 * DAMPING * wr ** (2 - p) * np.array([1.0, -1.0, 1.0])
-    return cf.synthetic_frf(F, NATURAL, DAMPING, constants[None, :] / abs(constants[0]), quantity)
+    return modal_superposition(F, NATURAL, DAMPING, constants[None, :] / abs(constants[0]), quantity)
 
 
 def assert_accurate_at_40_db(clean: np.ndarray, quantity: str, seeds) -> None:
     for seed in seeds:
-        noisy = cf.add_noise(clean, 40.0, np.random.default_rng(seed))
+        noisy = add_noise(clean, 40.0, np.random.default_rng(seed))
         for r in range(NATURAL.size):
             fit = cf.circle_fit(F, noisy[0], band_of(r), quantity)
             assert fit.ok, (seed, r, fit.flags)
@@ -148,22 +149,22 @@ def test_noisy_accuracy_at_40_db_three_dof_structure(quantity):
 
 
 def test_bands_are_found_and_fit_end_to_end_at_40_db():
-    noisy = cf.add_noise(three_mode_frf("accelerance"), 40.0, np.random.default_rng(3))
-    bands = cf.find_mode_bands(F, noisy)
+    noisy = add_noise(three_mode_frf("accelerance"), 40.0, np.random.default_rng(3))
+    bands = ex.find_mode_bands(F, noisy)
     assert len(bands) == 3
     for (lo, hi), fr in zip(bands, NATURAL):
         assert lo < fr < hi
     assert all(a[1] <= b[0] for a, b in zip(bands[:-1], bands[1:]))  # no overlap
-    modes = [cf.combine(row) for row in cf.fit_modes(F, noisy, "accelerance", bands)]
+    modes = [ex.combine(row) for row in ex.fit_modes(F, noisy, "accelerance", bands)]
     for m, fr, z in zip(modes, NATURAL, DAMPING):
         assert m.ok and m.curves_used == 2
         assert abs(m.frequency_hz / fr - 1) < NOISY_FREQUENCY
         assert abs(m.damping_ratio / z - 1) < NOISY_DAMPING
-    assert len(cf.find_mode_bands(F, noisy, count=2)) == 2
+    assert len(ex.find_mode_bands(F, noisy, count=2)) == 2
 
 
 def test_error_vs_snr_shrinks_with_snr():
-    out = cf.error_vs_snr([30.0, 50.0], seeds=[0, 1])
+    out = ex.error_vs_snr([30.0, 50.0], seeds=[0, 1])
     assert out["frequency_median"].shape == (2, 3) and out["damping_p90"].shape == (2, 3)
     assert np.all(out["frequency_median"][1] < out["frequency_median"][0])
     assert np.all(out["damping_median"][1] < out["damping_median"][0])
@@ -173,7 +174,7 @@ def test_error_vs_snr_shrinks_with_snr():
 # (c) invariance: a complex scale changes only the modal constant (and the residuals)
 
 def test_scaling_the_frf_scales_only_the_modal_constant():
-    noisy = cf.add_noise(three_mode_frf("accelerance")[:1], 40.0, np.random.default_rng(7))[0]
+    noisy = add_noise(three_mode_frf("accelerance")[:1], 40.0, np.random.default_rng(7))[0]
     scale = -3.7e2 * np.exp(0.8j)
     for r in range(NATURAL.size):
         a = cf.circle_fit(F, noisy, band_of(r))
@@ -197,24 +198,24 @@ def test_scaling_the_frf_scales_only_the_modal_constant():
 def test_modes_0p3_percent_apart_are_flagged_close(damping, sign):
     natural = np.array([100.0, 250.0, 250.75, 600.0])  # 250 and 250.75: 0.3 % apart
     constants = np.array([[1.0, 0.6, 0.6 * sign, 0.3]])
-    clean = cf.synthetic_frf(F, natural, [0.01, damping, damping, 0.005], constants)
+    clean = modal_superposition(F, natural, [0.01, damping, damping, 0.005], constants, "accelerance")
     for seed in (None, 0, 1):
-        h = clean if seed is None else cf.add_noise(clean, 40.0, np.random.default_rng(seed))
-        rows = cf.fit_modes(F, h, "accelerance")
-        near = [cf.combine(row) for row in rows if 245.0 < row[0].frequency_hz < 256.0]
+        h = clean if seed is None else add_noise(clean, 40.0, np.random.default_rng(seed))
+        rows = ex.fit_modes(F, h, "accelerance")
+        near = [ex.combine(row) for row in rows if 245.0 < row[0].frequency_hz < 256.0]
         assert near, "the close pair vanished"
         assert all("close_mode" in m.flags for m in near), [m.flags for m in near]
-        far = [cf.combine(row) for row in rows if abs(row[0].frequency_hz - 100.0) < 1.0]
+        far = [ex.combine(row) for row in rows if abs(row[0].frequency_hz - 100.0) < 1.0]
         assert far and far[0].ok
 
 
 def test_mode_hidden_in_noise_is_not_reported_as_good():
     natural = np.array([100.0, 400.0, 600.0])
     constants = np.array([[1.0, 1e-5, 0.2]])   # the 400 Hz peak lies below the noise
-    clean = cf.synthetic_frf(F, natural, [0.03, 0.01, 0.001], constants)
+    clean = modal_superposition(F, natural, [0.03, 0.01, 0.001], constants, "accelerance")
     for seed in range(2):
-        noisy = cf.add_noise(clean, 40.0, np.random.default_rng(seed))
-        bands = cf.find_mode_bands(F, noisy)
+        noisy = add_noise(clean, 40.0, np.random.default_rng(seed))
+        bands = ex.find_mode_bands(F, noisy)
         assert not any(lo < 400.0 < hi for lo, hi in bands)
         fit = cf.circle_fit(F, noisy[0], (380.0, 420.0))  # the user insists on a band there
         assert not fit.ok
@@ -233,16 +234,16 @@ def test_band_too_narrow_for_the_mode_is_flagged():
 def test_combination_weights_quality_and_drops_flagged_sensors():
     natural, zeta = np.array([250.0]), np.array([0.01])
     constants = np.array([[1.0], [0.3], [0.08], [1e-6]])  # the last sensor sits at a node
-    clean = cf.synthetic_frf(F, natural, zeta, constants)
+    clean = modal_superposition(F, natural, zeta, constants, "accelerance")
     sigma = np.sqrt(np.mean(np.abs(clean[0]) ** 2)) * 10 ** (-40 / 20)  # one noise level for all
     errors_f, errors_z, worst_f, worst_z = [], [], [], []
     for seed in range(4):
         rng = np.random.default_rng(seed)
         noise = rng.standard_normal(clean.shape) + 1j * rng.standard_normal(clean.shape)
         noisy = clean + sigma * noise / np.sqrt(2)
-        fits = cf.fit_modes(F, noisy, "accelerance", bands=[(235.0, 265.0)])[0]
+        fits = ex.fit_modes(F, noisy, "accelerance", bands=[(235.0, 265.0)])[0]
         assert "weak" in fits[3].flags
-        mode = cf.combine(fits)
+        mode = ex.combine(fits)
         assert mode.weights[3] == 0.0 and mode.curves_used == 3 and mode.ok
         assert mode.weights[0] > mode.weights[1] > mode.weights[2]
         errors_f.append(abs(mode.frequency_hz / natural[0] - 1))
@@ -254,9 +255,9 @@ def test_combination_weights_quality_and_drops_flagged_sensors():
 
 
 def test_all_flagged_fits_are_combined_with_their_flags():
-    h = cf.add_noise(cf.synthetic_frf(F, [400.0], [0.01], [[1e-6], [2e-6]]) + 1.0, 40.0,
+    h = add_noise(modal_superposition(F, [400.0], [0.01], [[1e-6], [2e-6]], "accelerance") + 1.0, 40.0,
                      np.random.default_rng(0))
-    mode = cf.combine(cf.fit_modes(F, h, "accelerance", bands=[(380.0, 420.0)])[0])
+    mode = ex.combine(ex.fit_modes(F, h, "accelerance", bands=[(380.0, 420.0)])[0])
     assert mode.curves_used == 2 and not mode.ok and "weak" in mode.flags
 
 
@@ -280,11 +281,11 @@ def test_bad_input_raises_value_error(change, match):
 
 def test_bad_input_to_band_finder_and_combine():
     with pytest.raises(ValueError, match="frfs"):
-        cf.find_mode_bands(F, np.ones((2, F.size - 3)))
+        ex.find_mode_bands(F, np.ones((2, F.size - 3)))
     with pytest.raises(ValueError, match="quantity"):
-        cf.fit_modes(F, three_mode_frf("accelerance"), "displacement")
+        ex.fit_modes(F, three_mode_frf("accelerance"), "displacement")
     with pytest.raises(ValueError, match="nothing"):
-        cf.combine([])
+        ex.combine([])
 
 
 def test_module_imports_neither_pandas_nor_matplotlib():

@@ -8,7 +8,8 @@ import sys
 import pytest
 
 NUMERICAL = ["workbench", "workbench.frame", "workbench.elements", "workbench.assembly", "workbench.modal",
-             "workbench.generate", "workbench.outputs"]
+             "workbench.generate", "workbench.outputs", "workbench.stochastic", "workbench.smr", "workbench.designs",
+             "workbench.circlefit", "workbench.extraction"]
 
 
 @pytest.mark.parametrize("module", NUMERICAL)

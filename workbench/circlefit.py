@@ -73,11 +73,10 @@ over the radius), the curve's noise level estimated from second differences over
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import find_peaks
 
 __all__ = [
     "QUANTITIES",
@@ -91,17 +90,10 @@ __all__ = [
     "MIN_SIDE_POINTS",
     "MIN_BAND_POINTS",
     "ModalFit",
-    "ModeEstimate",
     "to_mobility",
     "pair_damping",
     "noise_level",
-    "find_mode_bands",
     "circle_fit",
-    "fit_modes",
-    "combine",
-    "synthetic_frf",
-    "add_noise",
-    "error_vs_snr",
 ]
 
 QUANTITIES = ("receptance", "mobility", "accelerance")
@@ -166,34 +158,6 @@ class ModalFit:
     @property
     def ok(self) -> bool:
         """True when the fit raised no flag."""
-        return not self.flags
-
-
-@dataclass(frozen=True)
-class ModeEstimate:
-    """One mode combined over several curves (`combine`).
-
-    Attributes
-    ----------
-    frequency_hz, damping_ratio : quality-weighted means over the curves used (Hz, ratio).
-    frequency_scatter, damping_scatter : weighted standard deviations over those curves.
-    curves_used : number of curves with a non-zero weight.
-    weights : (n_curves,) normalised weights, 0 for excluded (flagged) curves.
-    flags : flags of the curves used, plus ``"close_mode"`` if a curve raised it alone.
-    fits : the per-curve fits.
-    """
-
-    frequency_hz: float
-    damping_ratio: float
-    frequency_scatter: float
-    damping_scatter: float
-    curves_used: int
-    weights: tuple[float, ...]
-    flags: tuple[str, ...]
-    fits: tuple[ModalFit, ...] = field(repr=False, default=())
-
-    @property
-    def ok(self) -> bool:
         return not self.flags
 
 
@@ -498,24 +462,6 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
 # --------------------------------------------------------------------------------------------
 # bands, several curves, combination
 
-def _half_power_edges(s: np.ndarray, k: int) -> tuple[float, float]:
-    """Fractional indices where ``s`` first falls below ``s[k] / sqrt(2)`` on each side of ``k``."""
-    level = s[k] / np.sqrt(2.0)
-    left = np.nonzero(s[:k] < level)[0]
-    right = np.nonzero(s[k + 1:] < level)[0]
-    if left.size:
-        i = left[-1]
-        lo = i + (level - s[i]) / (s[i + 1] - s[i])
-    else:
-        lo = 0.0
-    if right.size:
-        j = k + 1 + right[0]
-        hi = j - 1 + (s[j - 1] - level) / (s[j - 1] - s[j])
-    else:
-        hi = float(s.size - 1)
-    return float(lo), float(hi)
-
-
 def noise_level(frfs) -> np.ndarray:
     """Noise RMS of each curve, (n_curves,), from second differences along frequency: for white
     circular noise of ``E|n|^2 = sigma^2``, ``|n_(i+1) - 2 n_i + n_(i-1)|`` is Rayleigh with median
@@ -525,208 +471,3 @@ def noise_level(frfs) -> np.ndarray:
     second = np.abs(h[:, 2:] - 2.0 * h[:, 1:-1] + h[:, :-2])
     sigma = np.median(second, axis=1) / np.sqrt(6.0 * np.log(2.0))
     return np.maximum(sigma, np.finfo(float).tiny * np.abs(h).max(axis=1) + np.finfo(float).tiny)
-
-
-def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_prominence: float = 0.3,
-                    min_snr: float = 10.0, max_damping: float = 0.1, width_factor: float = 4.0,
-                    min_lines: int = 4,
-                    f_min: float = 0.0, f_max: float = np.inf) -> list[tuple[float, float]]:
-    """Frequency bands around the resonance peaks seen across sensors and tests.
-
-    The summary function is ``S(f) = mean_curves |H(f)| / sigma`` with ``sigma`` each curve's
-    `noise_level` (so no sensor dominates and S reads in noise levels); peaks of ``log10 S`` with a
-    prominence of at least ``min_prominence`` decades and a height of at least ``min_snr`` noise
-    levels are kept (`scipy.signal.find_peaks`), the ``count`` most prominent if given. Each band
-    is the peak +- ``width_factor`` half-power half-widths of S (at least ``min_lines`` lines each
-    side), cut at the minimum of S between neighbouring peaks so that bands do not overlap (unless
-    the cut leaves fewer than `MIN_BAND_POINTS` lines: such a band is widened back, and two peaks
-    that close will be flagged ``"close_mode"`` by `fit_modes`). Bands are a suggestion: `fit_modes`
-    accepts the user's own.
-
-    Parameters
-    ----------
-    frequency_hz : (n_freq,) Hz, strictly increasing.
-    frfs : (n_curves, n_freq) or (n_freq,) complex FRFs (any quantity; peaks of |H|).
-    count : keep at most this many peaks, the most prominent.
-    min_prominence : decades of ``log10 S``.
-    min_snr : minimum peak height of S, in noise levels (modes hidden in noise are not reported).
-    max_damping : peaks whose half-power width exceeds ``2 max_damping f`` are broad humps between
-        antiresonances, not modes, and are dropped.
-    width_factor : band half-width in half-power half-widths.
-    min_lines : minimum lines each side of the peak.
-    f_min, f_max : Hz, peaks outside are ignored.
-
-    Returns
-    -------
-    list of (f_lo, f_hi) in Hz, increasing.
-    """
-    f = _check_frequency(frequency_hz)
-    h = _check_frfs(frfs, f.size)
-    s = np.mean(np.abs(h) / noise_level(h)[:, None], axis=0)
-    log_s = np.log10(np.maximum(s, np.finfo(float).tiny))
-    peaks, props = find_peaks(log_s, prominence=min_prominence, height=np.log10(min_snr))
-    keep = (f[peaks] >= f_min) & (f[peaks] <= f_max) & (f[peaks] > 0)
-    lines = np.arange(f.size, dtype=float)
-    edges = {int(k): _half_power_edges(s, int(k)) for k in peaks[keep]}
-    narrow = np.array([np.interp(edges[k][1], lines, f) - np.interp(edges[k][0], lines, f)
-                       <= 2.0 * max_damping * f[k] for k in peaks], dtype=bool)
-    keep &= narrow
-    peaks, prominence = peaks[keep], props["prominences"][keep]
-    if count is not None and peaks.size > count:
-        peaks = np.sort(peaks[np.argsort(prominence)[::-1][:count]])
-    bands = []
-    for n, k in enumerate(peaks):
-        lo, hi = edges[int(k)]
-        half = max(width_factor * 0.5 * (hi - lo), float(min_lines))
-        i_lo, i_hi = k - half, k + half
-        if n > 0:  # cut at the valley between neighbouring peaks
-            i_lo = max(i_lo, peaks[n - 1] + int(np.argmin(s[peaks[n - 1]:k + 1])))
-        if n < peaks.size - 1:
-            i_hi = min(i_hi, k + int(np.argmin(s[k:peaks[n + 1] + 1])))
-        need = 0.5 * (MIN_BAND_POINTS - 1)  # a cut band keeps enough lines (its mode will be "close")
-        i_lo, i_hi = min(i_lo, k - need), max(i_hi, k + need)
-        i_lo, i_hi = max(i_lo, 0.0), min(i_hi, f.size - 1.0)
-        bands.append((float(np.interp(i_lo, lines, f)), float(np.interp(i_hi, lines, f))))
-    return bands
-
-
-def fit_modes(frequency_hz, frfs, quantity: str, bands=None, count: int | None = None) -> list[list[ModalFit]]:
-    """Circle fit of every band on every curve.
-
-    Parameters
-    ----------
-    frequency_hz : (n_freq,) Hz.
-    frfs : (n_curves, n_freq) complex FRFs in the unit of ``quantity``.
-    quantity : receptance, mobility or accelerance.
-    bands : list of (f_lo, f_hi) Hz; ``None`` finds them with `find_mode_bands` (``count``).
-
-    Returns
-    -------
-    ``fits[band][curve]``. Besides `circle_fit`'s own flags, both modes of two neighbouring bands
-    whose frequencies (median over their unflagged curves) are closer than `CLOSE_BANDWIDTHS`
-    half-power bandwidths ``2 zeta f`` get ``"close_mode"``.
-    """
-    f = _check_frequency(frequency_hz)
-    h = _check_frfs(frfs, f.size)
-    _check_quantity(quantity)
-    if bands is None:
-        bands = find_mode_bands(f, h, count=count)
-    fits = [[circle_fit(f, curve, band, quantity) for curve in h] for band in bands]
-    # neighbours, from the bands with at least one unflagged fit (the others are flagged already)
-    centres = {i: (float(np.median([x.frequency_hz for x in row if x.ok])),
-                   float(np.median([x.damping_ratio for x in row if x.ok])))
-               for i, row in enumerate(fits) if any(x.ok for x in row)}
-    close = [False] * len(fits)
-    order = sorted(centres, key=lambda i: centres[i][0])
-    for a, b in zip(order[:-1], order[1:]):
-        (fa, za), (fb, zb) = centres[a], centres[b]
-        if abs(fb - fa) < CLOSE_BANDWIDTHS * 2.0 * max(za * fa, zb * fb):
-            close[a] = close[b] = True
-    return [[_with_flag(x, "close_mode") if close[i] else x for x in row] for i, row in enumerate(fits)]
-
-
-def _with_flag(fit: ModalFit, flag: str) -> ModalFit:
-    if flag in fit.flags:
-        return fit
-    return ModalFit(**{**fit.__dict__, "flags": fit.flags + (flag,)})
-
-
-def combine(fits) -> ModeEstimate:
-    """Combine one mode's fits on several curves.
-
-    Weights ``w = points_used / (circle_error^2 + WEIGHT_FLOOR^2)``, normalised; flagged fits get
-    no weight unless every fit is flagged (then all are used and their flags carried). Frequency
-    and damping are weighted means, with weighted standard deviations as scatter. The result's
-    flags are those of the fits used, plus ``"close_mode"`` if any fit raised it and nothing else
-    (two close modes are a property of the structure, not of a sensor; a fit that failed for
-    other reasons as well is no evidence of them).
-    """
-    fits = tuple(fits)
-    if not fits:
-        raise ValueError("fits: nothing to combine")
-    use = np.array([x.ok for x in fits])
-    if not use.any():
-        use[:] = True
-    w = np.array([x.points_used / (x.circle_error**2 + WEIGHT_FLOOR**2) for x in fits]) * use
-    w = np.where(np.isfinite(w), w, 0.0)
-    if w.sum() <= 0.0:
-        w = use.astype(float)
-    w = w / w.sum()
-    fr = np.array([x.frequency_hz for x in fits])
-    ze = np.array([x.damping_ratio for x in fits])
-    f_mean, z_mean = float(w @ fr), float(w @ ze)
-    flags = {flag for x, u in zip(fits, use) if u for flag in x.flags}
-    if any(x.flags == ("close_mode",) for x in fits):  # a clean fit but for its neighbour
-        flags.add("close_mode")
-    return ModeEstimate(
-        frequency_hz=f_mean, damping_ratio=z_mean,
-        frequency_scatter=float(np.sqrt(w @ (fr - f_mean) ** 2)),
-        damping_scatter=float(np.sqrt(w @ (ze - z_mean) ** 2)),
-        curves_used=int(np.count_nonzero(w)), weights=tuple(float(v) for v in w),
-        flags=tuple(flag for flag in FLAGS if flag in flags), fits=fits)
-
-
-# --------------------------------------------------------------------------------------------
-# synthetic FRFs and the accuracy study
-
-def synthetic_frf(frequency_hz, natural_hz, damping_ratios, constants,
-                  quantity: str = "accelerance") -> np.ndarray:
-    """Modal superposition ``sum_r A_jr / (w_r^2 - w^2 + 2 i zeta_r w_r w)`` (receptance, then
-    converted): ``natural_hz`` (n_modes,) Hz, ``damping_ratios`` (n_modes,), ``constants``
-    (n_curves, n_modes) receptance modal constants. Returns (n_curves, n_freq) complex."""
-    _check_quantity(quantity)
-    w = 2.0 * np.pi * np.asarray(frequency_hz, float)
-    wr = 2.0 * np.pi * np.asarray(natural_hz, float)
-    z = np.asarray(damping_ratios, float)
-    h = np.atleast_2d(constants) @ (1.0 / (wr[:, None] ** 2 - w**2 + 2j * (z * wr)[:, None] * w))
-    return h * (1j * w) if quantity == "mobility" else h * (-(w**2)) if quantity == "accelerance" else h
-
-
-def add_noise(frf: np.ndarray, snr_db: float, rng: np.random.Generator) -> np.ndarray:
-    """Add circular complex Gaussian noise to each curve of ``frf`` (..., n_freq): SNR in dB is
-    ``20 log10(RMS_f |H| / sigma)`` with ``sigma^2 = E|noise|^2``, per curve."""
-    frf = np.asarray(frf, complex)
-    sigma = np.sqrt(np.mean(np.abs(frf) ** 2, axis=-1, keepdims=True)) * 10.0 ** (-snr_db / 20.0)
-    noise = rng.standard_normal(frf.shape) + 1j * rng.standard_normal(frf.shape)
-    return frf + sigma * noise / np.sqrt(2.0)
-
-
-def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damping_ratios=(0.03, 0.01, 0.001),
-                 constants=((1.0, 0.6, 0.2),), quantity: str = "accelerance", resolution_hz: float = 0.25,
-                 f_max: float = 1250.0, band_halfwidths: float = 6.0) -> dict:
-    """Relative errors of the circle fit versus SNR on a well-separated synthetic mode set.
-
-    For each SNR (dB, `add_noise`) and seed (``numpy.random.default_rng(seed)``), noise is added
-    to the exact FRF on 0..``f_max`` Hz at ``resolution_hz``, and each mode is fitted in the band
-    ``f_r +- band_halfwidths * zeta_r f_r`` (at least `MIN_BAND_POINTS` lines).
-
-    Returns
-    -------
-    dict with ``snr_db`` (n_snr,), ``seeds``, ``natural_hz`` and ``damping_ratios`` (n_modes,),
-    ``frequency_median``, ``frequency_p90``, ``damping_median``, ``damping_p90`` (n_snr, n_modes):
-    median and 90th percentile of ``|estimate / truth - 1|`` over the seeds and curves, and
-    ``ok_fraction`` (n_snr, n_modes), the share of fits without flags.
-    """
-    f = np.arange(0.0, f_max + resolution_hz / 2, resolution_hz)
-    fr, zr = np.asarray(natural_hz, float), np.asarray(damping_ratios, float)
-    clean = synthetic_frf(f, fr, zr, np.asarray(constants, float), quantity)
-    half = np.maximum(band_halfwidths * zr * fr, MIN_BAND_POINTS / 2 * resolution_hz)
-    snr = np.asarray(snr_db_values, float)
-    shape = (snr.size, fr.size)
-    out = {k: np.zeros(shape) for k in ("frequency_median", "frequency_p90", "damping_median",
-                                        "damping_p90", "ok_fraction")}
-    for i, level in enumerate(snr):
-        ef, ez, ok = [[] for _ in fr], [[] for _ in fr], [[] for _ in fr]
-        for seed in seeds:
-            noisy = add_noise(clean, level, np.random.default_rng(seed))
-            for r in range(fr.size):
-                for curve in noisy:
-                    fit = circle_fit(f, curve, (fr[r] - half[r], fr[r] + half[r]), quantity)
-                    ef[r].append(abs(fit.frequency_hz / fr[r] - 1.0))
-                    ez[r].append(abs(fit.damping_ratio / zr[r] - 1.0))
-                    ok[r].append(fit.ok)
-        for r in range(fr.size):
-            out["frequency_median"][i, r], out["frequency_p90"][i, r] = np.percentile(ef[r], [50, 90])
-            out["damping_median"][i, r], out["damping_p90"][i, r] = np.percentile(ez[r], [50, 90])
-            out["ok_fraction"][i, r] = np.mean(ok[r])
-    return {"snr_db": snr, "seeds": tuple(seeds), "natural_hz": fr, "damping_ratios": zr, **out}

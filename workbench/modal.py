@@ -22,7 +22,9 @@ __all__ = [
     "solve_modes",
     "model_modes",
     "mac",
+    "modal_superposition",
     "modal_frf",
+    "add_noise",
     "frame_frf",
 ]
 
@@ -202,12 +204,41 @@ def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return cross / np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
 
 
+def modal_superposition(frequency_hz: np.ndarray, natural_hz: np.ndarray, damping_ratios: np.ndarray,
+                        constants: np.ndarray, quantity: str = "receptance") -> np.ndarray:
+    """FRFs from modal parameters: ``sum_r A_r / (omega_r^2 - omega^2 + 2 i zeta_r omega_r omega)``.
+
+    Parameters
+    ----------
+    frequency_hz : (n_freq,) Hz.
+    natural_hz, damping_ratios : (n_modes,) natural frequencies (Hz) and modal damping ratios.
+    constants : (n_curves, n_modes) receptance modal constants ``A_r = phi_jr phi_kr`` (1/kg for
+        mass-normalised shapes).
+    quantity : receptance (m/N), or times ``i omega`` for mobility, ``-omega^2`` for accelerance.
+
+    Returns
+    -------
+    (n_curves, n_freq) complex array.
+    """
+    if quantity not in QUANTITIES:
+        raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+    omega = 2.0 * np.pi * np.asarray(frequency_hz, float)
+    wr = 2.0 * np.pi * np.asarray(natural_hz, float)
+    zeta = np.asarray(damping_ratios, float)
+    if zeta.shape != wr.shape:
+        raise ValueError(f"damping_ratios: expected {wr.size} values, got shape {zeta.shape}")
+    denominator = wr[:, None] ** 2 - omega[None, :] ** 2 + 2j * zeta[:, None] * wr[:, None] * omega[None, :]
+    h = np.atleast_2d(constants) @ (1.0 / denominator)
+    if quantity == "mobility":
+        return h * (1j * omega)
+    if quantity == "accelerance":
+        return h * (-(omega**2))
+    return h
+
+
 def modal_frf(modes: Modes, frequency_hz: np.ndarray, response_dofs: np.ndarray, excitation_dof: int,
               damping_ratios: np.ndarray, quantity: str = "receptance") -> np.ndarray:
-    """FRFs by modal superposition with modal damping.
-
-    ``H_jk(omega) = sum_r phi_jr phi_kr / (omega_r^2 - omega^2 + 2 i zeta_r omega_r omega)``
-    (receptance, m/N), times ``i omega`` for mobility and ``-omega^2`` for accelerance.
+    """FRFs by modal superposition with modal damping (`modal_superposition` of the modes' shapes).
 
     Parameters
     ----------
@@ -222,21 +253,25 @@ def modal_frf(modes: Modes, frequency_hz: np.ndarray, response_dofs: np.ndarray,
     -------
     (n_resp, n_freq) complex array.
     """
-    if quantity not in QUANTITIES:
-        raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
     zeta = np.asarray(damping_ratios, float)
     if zeta.shape != (modes.count,):
         raise ValueError(f"damping_ratios: expected {modes.count} values, got shape {zeta.shape}")
-    omega = 2.0 * np.pi * np.asarray(frequency_hz, float)
-    wr = modes.omega
     constants = modes.shapes[np.asarray(response_dofs)] * modes.shapes[excitation_dof]  # (n_resp, n_modes)
-    denominator = wr[:, None] ** 2 - omega[None, :] ** 2 + 2j * zeta[:, None] * wr[:, None] * omega[None, :]
-    h = constants @ (1.0 / denominator)
-    if quantity == "mobility":
-        h = h * (1j * omega)
-    elif quantity == "accelerance":
-        h = h * (-(omega**2))
-    return h
+    return modal_superposition(frequency_hz, modes.frequency_hz, zeta, constants, quantity)
+
+
+def add_noise(values: np.ndarray, snr_db: float | None, rng: np.random.Generator) -> np.ndarray:
+    """Measurement noise: circular complex Gaussian, per curve (last axis = frequency).
+
+    ``SNR_dB = 20 log10(RMS_f |H| / sigma)`` with ``sigma^2 = E|noise|^2``, split evenly between the
+    real and imaginary parts. ``snr_db = None`` returns a noise-free copy.
+    """
+    values = np.asarray(values, complex)
+    if snr_db is None:
+        return values.copy()
+    sigma = np.sqrt(np.mean(np.abs(values) ** 2, axis=-1, keepdims=True)) * 10.0 ** (-snr_db / 20.0)
+    noise = rng.standard_normal(values.shape) + 1j * rng.standard_normal(values.shape)
+    return values + sigma * noise / np.sqrt(2.0)
 
 
 def frame_frf(model, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",

@@ -77,8 +77,8 @@ from scipy.optimize import brentq
 from .assembly import assemble, joint_energies
 from .campaign import Campaign, Factor, write_campaign
 from .designs import sweep_preloads
-from .frame import Frame, GroundSpring, Joint, PointMass, Support, member_length
-from .modal import Modes, frame_frf, model_modes
+from .frame import Frame, GroundSpring, Joint, PointMass, member_length
+from .modal import add_noise, frame_frf, model_modes
 from .outputs import json_text, write_outputs
 
 __all__ = [
@@ -91,7 +91,6 @@ __all__ = [
     "RigSettings",
     "default_laws",
     "apply_effect",
-    "add_noise",
     "simulate_campaign",
     "write_with_truth",
     "truth_path",
@@ -303,17 +302,6 @@ def apply_effect(frame: Frame, effect: Effect | None) -> Frame:
 
 
 _DAMAGE = "_damage"
-
-
-def add_noise(values: np.ndarray, snr_db: float | None, rng: np.random.Generator) -> np.ndarray:
-    """Complex Gaussian noise per curve (row): ``sigma = RMS_f |H| / 10^(SNR/20)``, split evenly
-    between the real and imaginary parts (``E|n|^2 = sigma^2``)."""
-    values = np.atleast_2d(values)
-    if snr_db is None:
-        return values.copy()
-    sigma = np.sqrt(np.mean(np.abs(values) ** 2, axis=1, keepdims=True)) * 10.0 ** (-snr_db / 20.0)
-    noise = rng.standard_normal(values.shape) + 1j * rng.standard_normal(values.shape)
-    return values + sigma * noise / math.sqrt(2.0)
 
 
 # ------------------------------------------------------------------------------------- simulation
