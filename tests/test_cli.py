@@ -117,3 +117,38 @@ def test_propagate_refuses_a_frame_without_random_joints(tmp_path, capsys):
     assert main(["propagate", str(path), "--method", "smr1", "--out", str(tmp_path / "o")]) == 2
     assert "no joint has a cov > 0" in capsys.readouterr().err
     assert main(["propagate", str(path), "--method", "smr9", "--out", str(tmp_path / "o")]) == 2
+
+
+def test_extract_finds_the_modes_the_rig_put_in(tmp_path):
+    """Rig campaign -> workbench extract -> modes.csv against the rig's truth."""
+    import json
+
+    from workbench.campaign import Factor
+    from workbench.frame import read_frame
+    from workbench.rig import RigSettings, simulate_campaign, write_with_truth
+
+    from conftest import REPO
+
+    frame = read_frame(REPO / "frames" / "one_bolt_vertical.toml")
+    factor = Factor("bolt_A", "tightening", {"1": "hand-tight", "3": "6000 N"}, "A")
+    campaign, truth = simulate_campaign(frame, (factor,), [{"bolt_A": "1"}, {"bolt_A": "3"}], RigSettings(), seed=4)
+    directory = tmp_path / "c"
+    truth_file = write_with_truth(campaign, truth, directory)
+    assert truth_file.parent == tmp_path  # beside the campaign, not inside
+    assert main(["extract", str(directory), "--count", "9", "--out", str(tmp_path / "x")]) == 0
+    with open(tmp_path / "x" / "modes.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["test_id", "mode", "frequency_hz", "damping_ratio"] and len(rows) == 18
+    truth = json.loads(truth_file.read_text())
+    for test in truth["tests"]:
+        got = np.array([float(r["frequency_hz"]) for r in rows if r["test_id"] == str(test["test_id"])])
+        true = np.array(test["frequency_hz"][:9])
+        np.testing.assert_allclose(got, true, rtol=1e-3)
+    assert (tmp_path / "x" / "quality.csv").exists()
+
+
+def test_extract_refuses_a_campaign_without_frfs(tmp_path, capsys):
+    from conftest import REPO
+
+    assert main(["extract", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--out", str(tmp_path / "x")]) == 2
+    assert "has no FRFs" in capsys.readouterr().err

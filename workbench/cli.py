@@ -68,6 +68,39 @@ def _propagate(args: argparse.Namespace) -> str:
     return f"{args.method}: moments of {moments.count} modes in {wall:.3f} s written to {args.out}"
 
 
+def _extract(args: argparse.Namespace) -> str:
+    from .campaign import frf_set, load_campaign
+    from .extraction import extract_tests
+
+    campaign = load_campaign(args.campaign)
+    if campaign.frf is None:
+        raise ValueError(f"{args.campaign}: frf.csv: the campaign has no FRFs to extract modes from")
+    sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
+    bands = None
+    if args.bands:
+        bands = [tuple(float(v) for v in band.split(":")) for band in args.bands.split(",")]
+    bands, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
+                                     {t: s.values for t, s in sets.items()}, campaign.quantity, bands, args.count)
+    modes_rows, quality_rows, flagged = [], [], 0
+    for t, per_mode in estimates.items():
+        for k, est in enumerate(per_mode, start=1):
+            modes_rows.append((t, k, est.frequency_hz, est.damping_ratio))
+            flagged += bool(est.flags)
+            quality_rows.append((t, k, "combined", est.frequency_hz, est.damping_ratio, est.damping_scatter,
+                                 "", "", est.curves_used, "|".join(est.flags)))
+            for sensor, fit, weight in zip(sets[t].responses, est.fits, est.weights):
+                quality_rows.append((t, k, sensor, fit.frequency_hz, fit.damping_ratio, fit.damping_scatter,
+                                     fit.circle_error, fit.points_used, weight, "|".join(fit.flags)))
+    write_outputs(args.out, {
+        "modes.csv": csv_text(["test_id", "mode", "frequency_hz", "damping_ratio"], modes_rows),
+        "quality.csv": csv_text(["test_id", "mode", "curve", "frequency_hz", "damping_ratio", "damping_scatter",
+                                 "circle_error", "points_used", "weight", "flags"], quality_rows),
+    }, force=args.force)
+    note = f"; {flagged} flagged (see quality.csv)" if flagged else ""
+    return (f"{len(bands)} modes x {len(estimates)} tests of {campaign.name!r} by circle fit{note}; "
+            f"written to {args.out}")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="workbench", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
@@ -79,6 +112,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output directory (created if absent)")
     p.add_argument("--force", action="store_true", help="replace existing files in --out")
     p.set_defaults(run=_modes)
+
+    p = sub.add_parser("extract", help="modal frequencies and damping of every test by circle fit")
+    p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
+    p.add_argument("--count", type=_positive_int, help="keep the N most prominent modes")
+    p.add_argument("--bands", help="override the mode bands: 'lo:hi,lo:hi,...' in Hz")
+    p.add_argument("--out", required=True, help="output directory (created if absent)")
+    p.add_argument("--force", action="store_true", help="replace existing files in --out")
+    p.set_defaults(run=_extract)
 
     p = sub.add_parser("propagate", help="moments of the eigenfrequencies under random joint moduli")
     p.add_argument("frame", help="frame.toml whose joints have a cov (CONTRACTS.md section 1)")

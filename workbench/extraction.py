@@ -17,7 +17,7 @@ from .circlefit import (CLOSE_BANDWIDTHS, FLAGS, MIN_BAND_POINTS, WEIGHT_FLOOR, 
                         _check_frfs, _check_quantity, circle_fit, noise_level)
 from .modal import add_noise, modal_superposition
 
-__all__ = ["ModeEstimate", "find_mode_bands", "fit_modes", "combine", "error_vs_snr"]
+__all__ = ["ModeEstimate", "find_mode_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]
 
 
 @dataclass(frozen=True)
@@ -203,6 +203,37 @@ def combine(fits) -> ModeEstimate:
         damping_scatter=float(np.sqrt(w @ (ze - z_mean) ** 2)),
         curves_used=int(np.count_nonzero(w)), weights=tuple(float(v) for v in w),
         flags=tuple(flag for flag in FLAGS if flag in flags), fits=fits)
+
+
+def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, count: int | None = None
+                  ) -> tuple[list[tuple[float, float]], dict[object, list[ModeEstimate]]]:
+    """Modes of every test of a campaign: bands found once across all tests and sensors.
+
+    Parameters
+    ----------
+    frequency_hz : test id -> (n_freq,) Hz.
+    frfs : test id -> (n_sensors, n_freq) complex FRFs in the unit of ``quantity``.
+    bands : (f_lo, f_hi) Hz per mode, or None to find them (`find_mode_bands` on all the curves
+        of all the tests when they share one frequency axis, else on the first test's curves).
+    count : keep the ``count`` most prominent peaks.
+
+    Returns
+    -------
+    bands : the bands used, increasing; band k is mode k + 1 in every test.
+    estimates : test id -> one `ModeEstimate` per band (its flags say where not to trust it).
+    """
+    tests = list(frfs)
+    if not tests:
+        raise ValueError("extract_tests: no test to extract")
+    if bands is None:
+        axis = np.asarray(frequency_hz[tests[0]], float)
+        shared = all(np.array_equal(np.asarray(frequency_hz[t], float), axis) for t in tests)
+        curves = np.concatenate([np.atleast_2d(frfs[t]) for t in tests]) if shared else np.atleast_2d(frfs[tests[0]])
+        bands = find_mode_bands(axis, curves, count=count)
+    bands = sorted((float(lo), float(hi)) for lo, hi in bands)
+    estimates = {t: [combine(row) for row in fit_modes(frequency_hz[t], np.atleast_2d(frfs[t]), quantity, bands)]
+                 for t in tests}
+    return bands, estimates
 
 
 def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damping_ratios=(0.03, 0.01, 0.001),
