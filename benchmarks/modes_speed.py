@@ -15,7 +15,7 @@ import numpy as np
 from workbench.assembly import assemble
 from workbench.frame import read_frame
 from workbench.generate import multibay_for_dofs
-from workbench.modal import model_modes
+from workbench.modal import DENSE_LIMIT, model_modes
 from timing import best_of
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,7 +33,8 @@ def main() -> None:
     four = read_frame(REPO / "frames" / "four_bolt.toml")
     t_asm, model = best_of(args.repeat, lambda: assemble(four))
     t_modes, modes = best_of(args.repeat, lambda: model_modes(model, 10))
-    rows.append(("four-bolt frame", model.size, len(four.joints), t_asm, t_modes, "auto (dense)"))
+    solver = "dense LAPACK" if model.size <= DENSE_LIMIT else "sparse shift-invert"
+    rows.append(("four-bolt frame", model.size, len(four.joints), t_asm, t_modes, f"auto: {solver}"))
 
     big = multibay_for_dofs(args.dofs)
     t_asm, model = best_of(args.repeat, lambda: assemble(big))

@@ -74,7 +74,7 @@ def main() -> None:
     print(f"\ngenerated frame: {big.size} dofs, {int(joints.random.sum())} random joints, first 10 modes")
     print(f"SMR1: nominal modes and lambda_kj {t_modes:.2f} s + moments {t_moments:.2f} s = {t_total:.2f} s "
           f"({'met' if t_total < 5 else 'MISSED'}: target under 5 s)")
-    print(f"Monte Carlo: {t_per_sample:.2f} s per sample measured on {n_mc} samples; 10 000 samples "
+    print(f"MC cost: {t_per_sample:.2f} s per sample measured on {n_mc} samples; 10 000 samples "
           f"EXTRAPOLATED to {10_000 * t_per_sample / 3600:.1f} h, i.e. {10_000 * t_per_sample / t_total:.0f} x SMR1")
     print("first 10 mean frequencies, Hz:", np.array2string(moments.mean_hz, precision=2))
 
