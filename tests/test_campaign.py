@@ -4,6 +4,7 @@ never changed, and random valid campaigns round-tripping through write and load 
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 import shutil
 
 import numpy as np
@@ -180,3 +181,27 @@ def test_random_valid_campaigns_round_trip_unchanged(tmp_path_factory, levels, t
         pd.testing.assert_frame_equal(getattr(back, name), getattr(c, name), check_dtype=False)
     assert (back.name, back.description, back.factors, back.frame) == (c.name, c.description, c.factors, c.frame)
     shutil.rmtree(directory)
+
+
+def test_frequency_data_from_modes_moments_or_frfs(tmp_path):
+    from workbench.campaign import frequency_data
+    from workbench.frame import read_frame
+    from workbench.rig import RigSettings, simulate_campaign
+
+    from conftest import REPO
+
+    table3 = frequency_data(load_campaign(REPO / "campaigns" / "paper_table3_one_bolt_vertical"))
+    assert not table3.has_tests and table3.modes.tolist() == list(range(1, 10))
+    assert table3.mean_hz[0] == 26.00 and table3.std_hz[8] == 4.66
+
+    frame = read_frame(REPO / "frames" / "one_bolt_vertical.toml")
+    factor = Factor("bolt_A", "tightening", {"1": "hand-tight", "2": "1800 N", "3": "6000 N"}, "A")
+    campaign, truth = simulate_campaign(frame, (factor,), [{"bolt_A": lv} for lv in "123"], RigSettings(), seed=8)
+    from_frfs = frequency_data(campaign, count=6)
+    true = np.array([t["frequency_hz"][:6] for t in truth["tests"]])
+    np.testing.assert_allclose(from_frfs.frequency_hz, true, rtol=2e-4)
+    np.testing.assert_allclose(from_frfs.mean_hz, true.mean(axis=0), rtol=2e-4)
+    with_modes = replace(campaign, modes=pd.DataFrame(
+        [(k + 1, m + 1, f, 0.01) for k, row in enumerate(true) for m, f in enumerate(row)],
+        columns=["test_id", "mode", "frequency_hz", "damping_ratio"]))
+    np.testing.assert_array_equal(frequency_data(with_modes).frequency_hz, true)

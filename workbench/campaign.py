@@ -38,6 +38,7 @@ __all__ = [
     "write_campaign",
     "campaign_toml",
     "frf_set",
+    "frequency_data",
 ]
 
 FACTOR_KINDS = ("tightening", "amplitude", "other")
@@ -431,3 +432,45 @@ def frf_set(campaign: Campaign, test_id) -> FRFSet:
 
 
 
+
+
+def frequency_data(campaign: Campaign, count: int | None = None):
+    """The campaign's measured eigenfrequencies for identification (`workbench.identify.FrequencyData`).
+
+    From ``modes.csv`` when there is one, else extracted from the FRFs by circle fit (every test,
+    bands shared across tests; modes whose fit is flagged ``weak`` or ``poor_circle`` are left out
+    of that test), else the published moments (no individual tests).
+
+    Parameters
+    ----------
+    count : use at most the first ``count`` modes.
+    """
+    from .identify import FrequencyData
+
+    source = str(campaign.path or campaign.name)
+    if campaign.modes is None and campaign.frf is not None:
+        from .extraction import extract_tests
+
+        sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
+        _, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
+                                     {t: s.values for t, s in sets.items()}, campaign.quantity, count=count)
+        rows = [(t, k, e.frequency_hz) for t, per_mode in estimates.items() for k, e in enumerate(per_mode, start=1)
+                if not {"weak", "poor_circle"} & set(e.flags)]
+        table = pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz"])
+        source += " (modes by circle fit of its FRFs)"
+    elif campaign.modes is not None:
+        table = campaign.modes
+        source += "/modes.csv"
+    elif campaign.moments is not None:
+        m = campaign.moments.sort_values("mode")
+        if count is not None:
+            m = m[m["mode"] <= count]
+        return FrequencyData(m["mode"].to_numpy(), m["mean_hz"].to_numpy(), m["std_hz"].to_numpy(),
+                             source=source + "/moments.csv")
+    else:
+        _fail(source, "holds no modes, FRFs or moments to identify from")
+    wide = table.pivot(index="test_id", columns="mode", values="frequency_hz").sort_index(axis=1)
+    if count is not None:
+        wide = wide.loc[:, wide.columns <= count]
+    wide = wide.reindex(campaign.test_ids)
+    return FrequencyData.from_tests(tuple(wide.index), wide.columns.to_numpy(), wide.to_numpy(float), source)

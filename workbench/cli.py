@@ -115,7 +115,7 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("extract", help="modal frequencies and damping of every test by circle fit")
     p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
-    p.add_argument("--count", type=_positive_int, help="keep the N most prominent modes")
+    p.add_argument("--count", type=_positive_int, help="keep the N lowest modes found")
     p.add_argument("--bands", help="override the mode bands: 'lo:hi,lo:hi,...' in Hz")
     p.add_argument("--out", required=True, help="output directory (created if absent)")
     p.add_argument("--force", action="store_true", help="replace existing files in --out")

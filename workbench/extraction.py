@@ -215,7 +215,7 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
     frfs : test id -> (n_sensors, n_freq) complex FRFs in the unit of ``quantity``.
     bands : (f_lo, f_hi) Hz per mode, or None to find them (`find_mode_bands` on all the curves
         of all the tests when they share one frequency axis, else on the first test's curves).
-    count : keep the ``count`` most prominent peaks.
+    count : keep the ``count`` lowest modes found.
 
     Returns
     -------
@@ -229,8 +229,9 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
         axis = np.asarray(frequency_hz[tests[0]], float)
         shared = all(np.array_equal(np.asarray(frequency_hz[t], float), axis) for t in tests)
         curves = np.concatenate([np.atleast_2d(frfs[t]) for t in tests]) if shared else np.atleast_2d(frfs[tests[0]])
-        bands = find_mode_bands(axis, curves, count=count)
-    bands = sorted((float(lo), float(hi)) for lo, hi in bands)
+        bands = find_mode_bands(axis, curves)
+    # the lowest modes, not the most prominent: mode k must be the k-th mode in every use
+    bands = sorted((float(lo), float(hi)) for lo, hi in bands)[:count]
     estimates = {t: [combine(row) for row in fit_modes(frequency_hz[t], np.atleast_2d(frfs[t]), quantity, bands)]
                  for t in tests}
     return bands, estimates
