@@ -31,7 +31,7 @@ std error on a close pair follows ``3.8 / PF^2``.
 
 Our accuracy study also shows what PF cannot see: SMR1's std error on well-separated modes grows as
 ``kappa * D_k`` with the variance-weighted joint dispersion ``D_k = sum_j w_kj cov_j^2`` (``w_kj``,
-joint j's share of ``Var[lambda_k]``) and ``kappa`` between 0.1 and 1.9 on every frame and CoV we
+joint j's share of ``Var[lambda_k]``) and ``kappa`` at most 1.93 on every frame and CoV we
 tried: the strain redistributes inside a joint zone whose modulus varies a lot, a static effect of
 the high modes that no neighbour's moments reveal (horizontal joint, CoV 0.22: 4-9 % error at
 PF >= 36). So a mode is refined when ``PF_k < PF_THRESHOLD`` (30) or ``D_k > DISPERSION_THRESHOLD``
