@@ -253,3 +253,25 @@ def test_figure11_adaptive_within_1_percent_of_monte_carlo(name):
     if name == "one_bolt_horizontal":
         first = smr1(model, joints, 10)
         assert np.abs(first.std_hz / np.array(ref["quadrature"]["std_hz"]) - 1).max() > 0.04
+
+
+def test_smr_at_another_operating_point(vertical):
+    """SMR on a model moved to other joint moduli equals SMR on the frame assembled there, and
+    sensitivities rescaled by gamma are refused where they would be wrong (SMR2, adaptive)."""
+    from dataclasses import replace as replace_dc
+
+    from workbench.assembly import with_joint_scale
+
+    frame = vertical.frame
+    moved = with_joint_scale(vertical, np.array([0.5]))
+    rebuilt = assemble(replace_dc(frame, joints=tuple(replace_dc(j, youngs_modulus=12e9) for j in frame.joints)))
+    joints = JointModel(vertical.joint_names, np.array([0.1]))
+    a, b = adaptive(moved, joints, 6), adaptive(rebuilt, joints, 6)
+    np.testing.assert_allclose(a.mean_hz, b.mean_hz, rtol=1e-10)
+    np.testing.assert_allclose(a.std_hz, b.std_hz, rtol=1e-8)
+    scaled = sensitivities(vertical, 6, np.array([0.5]))
+    np.testing.assert_allclose(smr1(vertical, joints, 6, scaled).std_hz, smr1(rebuilt, joints, 6).std_hz, rtol=1e-8)
+    with pytest.raises(ValueError, match="serve SMR1 only"):
+        adaptive(vertical, joints, 6, sens=scaled)
+    with pytest.raises(ValueError, match="serve SMR1 only"):
+        smr2(vertical, joints, 6, sens=scaled)

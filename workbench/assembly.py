@@ -12,7 +12,7 @@ nominal model. Supports that are ``fixed`` remove their dof; every other matrix 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -21,7 +21,7 @@ from . import elements
 from .frame import DOF_NAMES, Frame, locate_point, member_length
 
 __all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "geometric_stiffness",
-           "element_energies", "joint_energies", "strain_energy"]
+           "element_energies", "joint_energies", "strain_energy", "with_joint_scale"]
 
 
 @dataclass(frozen=True)
@@ -350,6 +350,24 @@ def strain_energy(model: Model, shapes: np.ndarray, gamma: np.ndarray | None = N
     rest, joints = joint_energies(model, shapes)
     weight = np.ones(len(joints)) if gamma is None else np.asarray(gamma, float)
     return rest + weight @ joints
+
+
+def with_joint_scale(model: Model, scale: np.ndarray) -> Model:
+    """``model`` with each joint zone's modulus multiplied by ``scale`` (n_joints,), without re-meshing.
+
+    Exactly the model assembled from the frame with those joint moduli: a joint zone's stiffness
+    is linear in its modulus, and the Timoshenko shear parameter does not depend on it. Its
+    ``gamma`` is then relative to the new moduli (the nominal point of SMR and of eq. 9).
+    """
+    scale = np.asarray(scale, float)
+    if scale.shape != (len(model.stiffness_joints),) or not np.all(np.isfinite(scale)) or np.any(scale <= 0):
+        raise ValueError(f"scale: expected {len(model.stiffness_joints)} finite positive values, got {scale}")
+    owner = model.mesh.element_joint
+    factor = np.where(owner >= 0, scale[np.maximum(owner, 0)], 1.0)
+    data = replace(model.elements, axial=model.elements.axial * factor, bending=model.elements.bending * factor)
+    joints = tuple(replace(j, youngs_modulus=float(j.youngs_modulus * s)) for j, s in zip(model.frame.joints, scale))
+    return replace(model, frame=replace(model.frame, joints=joints), elements=data,
+                   stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, model.stiffness_joints)))
 
 
 def assemble(frame: Frame) -> Model:

@@ -85,20 +85,33 @@ class Sensitivities:
     modes : nominal modes (``count + EXTRA_MODES`` of them when available).
     rest : (n_modes,) ``phi_k^T K_rest phi_k``, (rad/s)^2.
     joints : (n_modes, n_joints) ``lambda_kj = phi_k^T K_j phi_k``, (rad/s)^2.
+    scale : the joint scale ``gamma`` they were computed at (None: the model's nominal point).
     """
 
     modes: Modes
     rest: np.ndarray
     joints: np.ndarray
+    scale: np.ndarray | None = None
+
+    def require_nominal(self) -> None:
+        """SMR2, adaptive and Pert2 differentiate the model itself: they need its nominal point."""
+        if self.scale is not None and not np.allclose(self.scale, 1.0, rtol=0.0, atol=1e-12):
+            raise ValueError("sensitivities computed at a joint scale gamma != 1 serve SMR1 only; for SMR2, "
+                             "adaptive and Pert2 move the model there with workbench.assembly.with_joint_scale")
 
 
 def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
-    """Nominal modes of ``model`` (joints at ``gamma``, default their means) and ``lambda_kj`` (eq. 5)."""
+    """Nominal modes of ``model`` (joints at ``gamma``, default their means) and ``lambda_kj`` (eq. 5).
+
+    With ``gamma``, ``lambda_kj`` is relative to that point: right for SMR1, which needs only the
+    nominal solve there. SMR2, adaptive and Pert2 refuse such sensitivities; give them the model
+    moved to that point instead (`workbench.assembly.with_joint_scale`).
+    """
     modes = model_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
     rest, joints = joint_energies(model, modes.shapes)
     if gamma is not None:
         joints = joints * np.asarray(gamma, float)[:, None]
-    return Sensitivities(modes, rest, joints.T)
+    return Sensitivities(modes, rest, joints.T, None if gamma is None else np.asarray(gamma, float))
 
 
 def _x_minus_log1p(x: np.ndarray) -> np.ndarray:
@@ -233,6 +246,7 @@ def eigenvector_derivatives(model, sens: Sensitivities, modes: np.ndarray, joint
     -------
     (len(modes), n_dof, len(joint_index)) derivatives.
     """
+    sens.require_nominal()
     k_nominal = model.stiffness()
     mass = model.mass
     n = model.size
@@ -307,6 +321,7 @@ def adaptive(model, joints: JointModel, count: int = 10, proximity_threshold: fl
     """The strategy of Figure 10: SMR1 on all modes, then SMR2 where ``PF_k < proximity_threshold``
     (close modes) or ``D_k > dispersion_threshold`` (a widely varying joint); see the module notes."""
     sens = sens or sensitivities(model, count)
+    sens.require_nominal()
     first = smr1(model, joints, count, sens)
     refined = (first.proximity < proximity_threshold) | (first.dispersion > dispersion_threshold)
     mean, std = first.mean_hz.copy(), first.std_hz.copy()
