@@ -152,3 +152,30 @@ def test_extract_refuses_a_campaign_without_frfs(tmp_path, capsys):
 
     assert main(["extract", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--out", str(tmp_path / "x")]) == 2
     assert "has no FRFs" in capsys.readouterr().err
+
+
+def test_identify_moments_writes_the_contract_record(tmp_path):
+    import json
+
+    from conftest import REPO
+
+    out = tmp_path / "id"
+    assert main(["identify", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--method", "moments",
+                 "--out", str(out)]) == 0
+    record = json.loads((out / "identification.json").read_text())
+    assert set(record) == {"campaign", "method", "joints", "modes_used", "wall_time_s"}
+    joint = record["joints"]["A"]
+    assert set(joint) == {"youngs_modulus", "cov", "youngs_modulus_ci95", "cov_ci95"}
+    assert 5e9 < joint["youngs_modulus"] < 30e9 and 0.01 < joint["cov"] < 0.3
+    assert joint["cov_ci95"] is None  # published moments alone give no interval
+    assert record["modes_used"] == list(range(1, 10))
+
+
+def test_identify_bayes_refuses_published_moments(tmp_path, capsys):
+    from conftest import REPO
+
+    assert main(["identify", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--method", "bayes",
+                 "--out", str(tmp_path / "id")]) == 2
+    err = capsys.readouterr().err
+    assert "only published moments" in err and err.count("\n") == 1
+    assert not (tmp_path / "id").exists()

@@ -101,6 +101,34 @@ def _extract(args: argparse.Namespace) -> str:
             f"written to {args.out}")
 
 
+def _identify(args: argparse.Namespace) -> str:
+    from .campaign import frequency_data, load_campaign
+    from .identify import identification_record, moment_matching
+
+    campaign = load_campaign(args.campaign)
+    data = frequency_data(campaign, count=args.count)
+    if args.method == "bayes" and not data.has_tests:
+        raise ValueError(f"{args.campaign}: bayes needs every test's frequencies (modes.csv or FRFs); this "
+                         "campaign has only published moments (moments.csv): use --method moments")
+    model = assemble(campaign.frame)
+    start = time.perf_counter()
+    files: dict[str, str | bytes] = {}
+    if args.method == "moments":
+        fit = moment_matching(model, data, seed=args.seed)
+    else:
+        from .bayes import bayes_identify, posterior_netcdf
+
+        fit = bayes_identify(model, data, seed=args.seed, progress=sys.stderr.isatty())
+        files["posterior.nc"] = posterior_netcdf(fit)
+    wall = time.perf_counter() - start
+    record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
+    files["identification.json"] = json_text(record)
+    write_outputs(args.out, files, force=args.force)
+    summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
+                        for name, j in record["joints"].items())
+    return f"{args.method} on {campaign.name!r} ({data.source}): {summary}; written to {args.out}"
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="workbench", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
@@ -120,6 +148,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output directory (created if absent)")
     p.add_argument("--force", action="store_true", help="replace existing files in --out")
     p.set_defaults(run=_extract)
+
+    p = sub.add_parser("identify", help="mean and CoV of each joint group's modulus from a campaign")
+    p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
+    p.add_argument("--method", required=True, choices=["moments", "bayes"])
+    p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
+    p.add_argument("--out", required=True, help="output directory (created if absent)")
+    p.add_argument("--force", action="store_true", help="replace existing files in --out")
+    p.set_defaults(run=_identify)
 
     p = sub.add_parser("propagate", help="moments of the eigenfrequencies under random joint moduli")
     p.add_argument("frame", help="frame.toml whose joints have a cov (CONTRACTS.md section 1)")
