@@ -116,10 +116,13 @@ def _identify(args: argparse.Namespace) -> str:
     if args.method == "moments":
         fit = moment_matching(model, data, seed=args.seed)
     else:
-        from .bayes import bayes_identify, posterior_netcdf
+        import tempfile
+
+        from .bayes import bayes_identify, save_posterior
 
         fit = bayes_identify(model, data, seed=args.seed, progress=sys.stderr.isatty())
-        files["posterior.nc"] = posterior_netcdf(fit)
+        with tempfile.TemporaryDirectory() as tmp:  # through write_outputs: all files or none
+            files["posterior.nc"] = save_posterior(fit, tmp).read_bytes()
     wall = time.perf_counter() - start
     record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
     files["identification.json"] = json_text(record)
