@@ -309,3 +309,30 @@ def test_moment_matching_on_table3(one_bolt):
     assert relative.max() < 0.025
     assert np.sqrt(np.mean(relative**2)) < 0.0147
     assert fit.cov[0] != DEFAULT_START_COV
+
+
+@pytest.mark.slow
+def test_both_estimators_recover_the_two_joint_model_of_the_table5_campaign():
+    """Bundled synthetic Table 5 campaign (FRFs -> circle fit -> identification): both estimators
+    land near the rig's truth (the sample mean and CoV of its per-test moduli, the rig's preload
+    law not being a Gamma law), and the truth lies inside the Bayesian 95 % intervals."""
+    import json
+
+    from workbench.assembly import assemble
+    from workbench.bayes import bayes_identify
+    from workbench.campaign import frequency_data, load_campaign
+
+    directory = REPO / "campaigns" / "two_bolt_table5"
+    campaign = load_campaign(directory)
+    data = frequency_data(campaign, count=9)
+    model = assemble(campaign.frame)
+    truth = json.loads(directory.with_name("two_bolt_table5.truth.json").read_text())
+    moduli = np.array([[t["moduli_pa"]["A"], t["moduli_pa"]["B"]] for t in truth["tests"]])
+    true_mean, true_cov = moduli.mean(axis=0), moduli.std(axis=0, ddof=1) / moduli.mean(axis=0)
+    fit = moment_matching(model, data)
+    np.testing.assert_allclose(fit.mean_pa, true_mean, rtol=0.03)
+    np.testing.assert_allclose(fit.cov, true_cov, rtol=0.15)
+    post = bayes_identify(model, data, seed=1)
+    for g in range(2):
+        assert post.youngs_modulus_ci95[g][0] <= true_mean[g] <= post.youngs_modulus_ci95[g][1]
+        assert post.cov_ci95[g][0] <= true_cov[g] <= post.cov_ci95[g][1]
