@@ -137,40 +137,36 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    p = sub.add_parser("modes", help="nominal eigenfrequencies of a frame file (joints at their mean)")
+    def command(name: str, description: str, run) -> argparse.ArgumentParser:
+        # every command writes under --out (CONTRACTS.md section 3) and replaces only with --force
+        p = sub.add_parser(name, help=description)
+        p.add_argument("--out", required=True, help="output directory (created if absent)")
+        p.add_argument("--force", action="store_true", help="replace existing files in --out")
+        p.set_defaults(run=run)
+        return p
+
+    p = command("modes", "nominal eigenfrequencies of a frame file (joints at their mean)", _modes)
     p.add_argument("frame", help="frame.toml (CONTRACTS.md section 1)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
-    p.add_argument("--out", required=True, help="output directory (created if absent)")
-    p.add_argument("--force", action="store_true", help="replace existing files in --out")
-    p.set_defaults(run=_modes)
 
-    p = sub.add_parser("extract", help="modal frequencies and damping of every test by circle fit")
+    p = command("extract", "modal frequencies and damping of every test by circle fit", _extract)
     p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
     p.add_argument("--count", type=_positive_int, help="keep the N lowest modes found")
     p.add_argument("--bands", help="override the mode bands: 'lo:hi,lo:hi,...' in Hz")
-    p.add_argument("--out", required=True, help="output directory (created if absent)")
-    p.add_argument("--force", action="store_true", help="replace existing files in --out")
-    p.set_defaults(run=_extract)
 
-    p = sub.add_parser("identify", help="mean and CoV of each joint group's modulus from a campaign")
+    p = command("identify", "mean and CoV of each joint group's modulus from a campaign", _identify)
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--method", required=True, choices=["moments", "bayes"])
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
-    p.add_argument("--out", required=True, help="output directory (created if absent)")
-    p.add_argument("--force", action="store_true", help="replace existing files in --out")
-    p.set_defaults(run=_identify)
 
-    p = sub.add_parser("propagate", help="moments of the eigenfrequencies under random joint moduli")
+    p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate)
     p.add_argument("frame", help="frame.toml whose joints have a cov (CONTRACTS.md section 1)")
     p.add_argument("--method", required=True, choices=["smr1", "smr2", "adaptive", "pert2", "mc"])
     p.add_argument("--samples", type=_positive_int, default=10_000, help="Monte Carlo samples (default 10000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the joint draws (default 0)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
     p.add_argument("--workers", type=_positive_int, default=1, help="Monte Carlo worker processes")
-    p.add_argument("--out", required=True, help="output directory (created if absent)")
-    p.add_argument("--force", action="store_true", help="replace existing files in --out")
-    p.set_defaults(run=_propagate)
     return parser
 
 
