@@ -133,7 +133,8 @@ def _identify(args: argparse.Namespace) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="workbench", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="workbench", description="Identify and propagate the variability of bolted joints "
+                     "in light assembled frames (Ghienne, Laurent & Blanze, MSSP 2020).")
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
