@@ -252,3 +252,19 @@ def test_recovers_a_one_bolt_gamma_campaign_from_a_start_three_times_off():
     assert 4e-4 < np.median(post.sigma) < 6.25e-4
     assert post.rhat.max() < 1.1 and post.ess.min() > 300
     assert wall < 60
+
+
+def test_sampler_keeps_the_spread_of_a_12d_gaussian():
+    """The sampler's moves must not shrink the posterior in the likelihood's dimension (12): emcee
+    3.1.6's DESnookerMove gives a standard deviation of 0.78 here, which made the 95 % intervals
+    18-28 % too narrow in the comparison of estimators."""
+    ndim, walkers = 12, 48
+    rng = np.random.default_rng(3)
+
+    def log_prob(theta):
+        return -0.5 * np.sum(theta**2, axis=1)
+
+    sampler = run_ensemble(log_prob, rng.standard_normal((walkers, ndim)), steps=3000, burn=500, seed=4)
+    chain = sampler.get_chain(flat=True)
+    assert abs(chain.std(axis=0).mean() - 1.0) < 0.03
+    assert np.all(np.abs(chain.mean(axis=0)) < 0.1)

@@ -495,11 +495,12 @@ def likelihood_model(model, data: FrequencyData, groups: JointGroups | None = No
 def run_ensemble(log_prob, initial: np.ndarray, steps: int, burn: int, seed: int, progress: bool = False):
     """emcee's ensemble on a vectorised ``log_prob`` ((N, D) -> (N,)), seeded.
 
-    Moves: differential evolution only. Against the stretch move it cuts the autocorrelation time
-    of the one-joint likelihood (12 parameters) from about 80 steps to about 30. emcee's suggested
-    mix with 20 % of snooker moves mixed a little faster but its 95 % intervals came out 18-28 %
-    narrower on the same campaigns, and the CoV's covered the truth in 80 % of 30 synthetic
-    40-test campaigns against 93 % with DE alone (benchmarks/compare_estimators.py).
+    Moves: differential evolution only, which mixes far better than the stretch move on this
+    likelihood. emcee 3.1.6's ``DESnookerMove`` is biased (it samples a 12-D standard Gaussian
+    with a standard deviation of 0.78; fixed upstream in dfm/emcee PR #531, not yet released):
+    with 20 % of snooker moves the 95 % intervals came out 18-28 % too narrow, and the CoV's
+    covered the truth in 80 % of 30 synthetic 40-test campaigns against 93 % with DE alone
+    (benchmarks/compare_estimators.py).
 
     Returns the sampler after ``burn`` discarded steps (``sampler.reset()``) and ``steps`` kept.
     The same ``seed`` and ``initial`` give the same chain.
