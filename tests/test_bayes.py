@@ -14,8 +14,8 @@ from scipy.integrate import quad
 from scipy.special import gammaln
 
 from workbench.assembly import assemble
-from workbench.bayes import (LikelihoodModel, bayes_identify, forward_table, likelihood_model, run_ensemble,
-                             save_posterior)
+from workbench.bayes import (LikelihoodModel, bayes_identify, likelihood_model, run_ensemble, save_posterior)
+from workbench.surrogate import forward_table
 from workbench.frame import read_frame
 from workbench.identify import FrequencyData
 from workbench.modal import model_modes

@@ -9,7 +9,7 @@ import pytest
 
 NUMERICAL = ["workbench", "workbench.frame", "workbench.elements", "workbench.assembly", "workbench.modal",
              "workbench.generate", "workbench.outputs", "workbench.stochastic", "workbench.smr", "workbench.designs",
-             "workbench.circlefit", "workbench.extraction", "workbench.identify", "workbench.bayes"]
+             "workbench.circlefit", "workbench.extraction", "workbench.identify", "workbench.bayes", "workbench.surrogate"]
 
 
 @pytest.mark.parametrize("module", NUMERICAL)

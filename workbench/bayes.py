@@ -75,26 +75,22 @@ import math
 import os
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
 from scipy.special import gammaln, logsumexp
 
-from .assembly import assemble
 from .identify import FrequencyData, JointGroups, joint_groups
-from .modal import model_modes
-from .smr import eigenvector_derivatives, sensitivities
-from .stochastic import track_modes
+from .smr import sensitivities
+from .surrogate import ForwardTable, forward_table, frequencies_at, model_at
 
 __all__ = [
     "MODULUS_BOUNDS_PA",
     "COV_BOUNDS",
     "SIGMA_BOUNDS",
     "GH_POINTS",
-    "ForwardTable",
-    "forward_table",
     "reference_fit",
     "LikelihoodModel",
     "likelihood_model",
@@ -116,162 +112,6 @@ LOG_2PI = math.log(TWO_PI)
 # The table spans Y0 * exp(+-Z_HALF_RANGE): far beyond the tests (a CoV of 0.3 puts 99.9 % of a
 # Gamma law within exp(+-1)), so that the integrand never meets the table's edge, where it is clamped.
 Z_HALF_RANGE = {1: 1.5, 2: 1.0}
-TABLE_DEGREE = {1: 20, 2: 12}  # interpolation error measured 2e-11 (one joint), 1e-9 (two joints)
-
-
-# ------------------------------------------------------------------------------------ forward model
-
-def _cheb(x: np.ndarray, degree: int, derivative: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """Chebyshev T_0..T_degree at x (..., ) -> (..., degree + 1), and their derivatives."""
-    t = np.empty(x.shape + (degree + 1,))
-    t[..., 0] = 1.0
-    if degree:
-        t[..., 1] = x
-    for n in range(2, degree + 1):
-        t[..., n] = 2.0 * x * t[..., n - 1] - t[..., n - 2]
-    if not derivative:
-        return t, None
-    d = np.zeros_like(t)
-    if degree:
-        d[..., 1] = 1.0
-    for n in range(2, degree + 1):  # T_n' = 2 T_(n-1) + 2 x T_(n-1)' - T_(n-2)'
-        d[..., n] = 2.0 * t[..., n - 1] + 2.0 * x * d[..., n - 1] - d[..., n - 2]
-    return t, d
-
-
-@dataclass(frozen=True)
-class ForwardTable:
-    """Frequencies ``f_k(z)`` (Hz) of chosen modes as a tensor Chebyshev series in ``z = log(Y / Y0)``.
-
-    Attributes
-    ----------
-    reference_pa : (r,) ``Y0`` of each random joint.
-    lower, upper : (r,) the range of ``z``; outside it the table is held constant (clipped).
-    coef : (degree + 1,) * r + (n_modes,) Chebyshev coefficients.
-    modes : (n_modes,) model mode indices (0 = lowest at Y0).
-    source : "exact" or "smr2".
-    """
-
-    reference_pa: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    coef: np.ndarray
-    modes: np.ndarray
-    source: str
-
-    @property
-    def degree(self) -> int:
-        return self.coef.shape[0] - 1
-
-    def __call__(self, z: np.ndarray, grad: bool = False):
-        """``f`` (..., n_modes) at ``z`` (..., r), and with ``grad`` its gradient (..., r, n_modes)."""
-        z = np.asarray(z, float)
-        r = self.lower.size
-        half = 0.5 * (self.upper - self.lower)
-        x = np.clip((z - 0.5 * (self.upper + self.lower)) / half, -1.0, 1.0)
-        t, d = _cheb(x, self.degree, grad)  # (..., r, n)
-        if r == 1:
-            f = t[..., 0, :] @ self.coef
-            if not grad:
-                return f
-            return f, (d[..., 0, :] @ self.coef)[..., None, :] / half[0]
-        if r == 2:
-            n = self.degree + 1
-            flat = self.coef.reshape(n, -1)  # (a, b * K)
-
-            def contract(p, q):  # sum_ab p_a q_b coef_abk, in two steps (no (..., n * n) temporary)
-                return np.einsum("...b,...bk->...k", q, (p @ flat).reshape(p.shape[:-1] + (n, -1)))
-
-            f = contract(t[..., 0, :], t[..., 1, :])
-            if not grad:
-                return f
-            g0 = contract(d[..., 0, :], t[..., 1, :]) / half[0]
-            g1 = contract(t[..., 0, :], d[..., 1, :]) / half[1]
-            return f, np.stack([g0, g1], axis=-2)
-        raise ValueError(f"ForwardTable: {r} random joints; the table handles 1 or 2")
-
-
-def _model_at(model, reference_pa: np.ndarray):
-    """The model re-assembled with its joints' file moduli set to ``reference_pa`` (gamma = 1 there)."""
-    frame = model.frame
-    joints = tuple(replace(j, youngs_modulus=float(y)) for j, y in zip(frame.joints, reference_pa))
-    return assemble(replace(frame, joints=joints))
-
-
-def _smr2_frequencies(model0, modes: np.ndarray, gammas: np.ndarray) -> np.ndarray:
-    """SMR2 Rayleigh quotients (eq. 6-7) around ``model0``'s file moduli, (n_points, n_modes) Hz."""
-    count = int(modes.max()) + 1
-    sens = sensitivities(model0, count)
-    r = gammas.shape[1]
-    deriv = eigenvector_derivatives(model0, sens, modes, np.arange(r))
-    out = np.empty((len(gammas), len(modes)))
-    for row, k in enumerate(modes):
-        basis = np.concatenate([sens.modes.shapes[:, [k]], deriv[row]], axis=1)
-        k_rest = basis.T @ (model0.stiffness_rest @ basis)
-        k_joint = np.stack([basis.T @ (kj @ basis) for kj in model0.stiffness_joints])
-        m_red = basis.T @ (model0.mass @ basis)
-        c = np.concatenate([np.ones((len(gammas), 1)), gammas - 1.0], axis=1)
-        stiff = k_rest[None] + np.einsum("gj,jab->gab", gammas, k_joint)
-        lam = np.einsum("ga,gab,gb->g", c, stiff, c) / np.einsum("ga,ab,gb->g", c, m_red, c)
-        out[:, row] = np.sqrt(np.clip(lam, 0.0, None)) / TWO_PI
-    return out
-
-
-def _exact_frequencies(model0, modes: np.ndarray, gammas: np.ndarray) -> np.ndarray:
-    """Exact frequencies (n_points, n_modes) Hz, tracked by MAC against ``model0``'s modes."""
-    count = int(modes.max()) + 1
-    solve_count = min(count + 4, model0.size - 2)
-    nominal = model_modes(model0, count)
-    out = np.empty((len(gammas), len(modes)))
-    for i, g in enumerate(gammas):
-        solved = model_modes(model0, solve_count, g)
-        index, _ = track_modes(nominal, solved, model0.mass)
-        out[i] = solved.frequency_hz[index[modes]]
-    return out
-
-
-def forward_table(model, modes, reference_pa, lower, upper, degree: int | None = None,
-                  source: str = "exact") -> ForwardTable:
-    """Build a `ForwardTable` of ``model``'s modes (0-based indices at ``reference_pa``).
-
-    Parameters
-    ----------
-    model : assembled model; all its joints are random (one ``z`` each).
-    modes : (n_modes,) mode indices, sorted order at the reference point.
-    reference_pa : (n_joints,) ``Y0``, Pa.
-    lower, upper : (n_joints,) range of ``z = log(Y / Y0)``.
-    degree : Chebyshev degree per joint (default `TABLE_DEGREE`).
-    source : "exact" (eigen-solutions, MAC-tracked) or "smr2" (Rayleigh quotient around Y0).
-    """
-    reference_pa = np.asarray(reference_pa, float)
-    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    modes = np.asarray(modes, int)
-    r = reference_pa.size
-    if r not in (1, 2):
-        raise ValueError(f"forward_table: {r} joints; the tabulated forward model handles 1 or 2")
-    degree = degree if degree is not None else TABLE_DEGREE[r]
-    n = degree + 1
-    x = np.cos(np.pi * (np.arange(n) + 0.5) / n)  # Chebyshev-Gauss nodes: discrete orthogonality
-    z_nodes = 0.5 * (upper + lower)[:, None] + 0.5 * (upper - lower)[:, None] * x[None, :]  # (r, n)
-    grids = np.meshgrid(*z_nodes, indexing="ij")
-    z = np.stack([g.ravel() for g in grids], axis=1)  # (n^r, r)
-    model0 = _model_at(model, reference_pa)
-    if source == "exact":
-        f = _exact_frequencies(model0, modes, np.exp(z))
-    elif source == "smr2":
-        f = _smr2_frequencies(model0, modes, np.exp(z))
-    else:
-        raise ValueError(f"forward: {source!r} is not 'exact' or 'smr2'")
-    t, _ = _cheb(x, degree, False)  # (n, n): t[i, a] = T_a(x_i)
-    scale = np.full(n, 2.0 / n)
-    scale[0] = 1.0 / n
-    project = t.T * scale[:, None]  # (a, i)
-    values = f.reshape((n,) * r + (len(modes),))
-    if r == 1:
-        coef = project @ values
-    else:
-        coef = np.einsum("ai,bj,ijk->abk", project, project, values)
-    return ForwardTable(reference_pa, lower, upper, coef, modes, source)
 
 
 # -------------------------------------------------------------------------------- preliminary fit
@@ -481,9 +321,7 @@ def likelihood_model(model, data: FrequencyData, groups: JointGroups | None = No
     # interpolation check between the nodes
     fractions = np.array([0.07, 0.29, 0.537, 0.71, 0.93])
     probe = lower + (upper - lower) * np.stack([fractions, fractions[::-1]][:n_joints], axis=1)
-    model0 = _model_at(model, y0)
-    src = _exact_frequencies if forward == "exact" else _smr2_frequencies
-    truth = src(model0, modes, np.exp(probe))
+    truth = frequencies_at(model_at(model, y0), modes, np.exp(probe), forward)
     forward_error = float(np.max(np.abs(table(probe) / truth - 1.0)))
     z_start = _test_estimates(table, f_obs, mask)
     lm = LikelihoodModel(table, f_obs, mask, np.asarray(data.mean_hz, float), joint_group, ref_pa, z_start)

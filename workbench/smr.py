@@ -64,6 +64,7 @@ __all__ = [
     "eigenvector_derivatives",
     "smr1",
     "smr2",
+    "smr2_frequencies",
     "adaptive",
     "pert2",
     "propagate",
@@ -269,34 +270,46 @@ def eigenvector_derivatives(model, sens: Sensitivities, modes: np.ndarray, joint
     return out
 
 
+def smr2_frequencies(model, sens: Sensitivities, modes: np.ndarray, gammas: np.ndarray,
+                     varying: np.ndarray | None = None, rayleigh: bool = True) -> np.ndarray:
+    """SMR2 eigenfrequencies (eq. 6-7) at given joint scales: (n_points, len(modes)) Hz.
+
+    Parameters
+    ----------
+    sens : `sensitivities` of ``model`` at its nominal point.
+    modes : 0-based indices of the nominal modes.
+    gammas : (n_points, n_joints) joint scales ``gamma``.
+    varying : indices of the joints whose eigenvector derivatives enter eq. (7) (default: all).
+    rayleigh : the Rayleigh quotient (default), or eq. (6) as printed.
+    """
+    varying = np.arange(gammas.shape[1]) if varying is None else np.asarray(varying)
+    derivatives = eigenvector_derivatives(model, sens, modes, varying)
+    coeff = np.concatenate([np.ones((len(gammas), 1)), gammas[:, varying] - 1.0], axis=1)  # (G, 1 + r)
+    out = np.empty((len(gammas), len(modes)))
+    for row, k in enumerate(modes):
+        basis = np.concatenate([sens.modes.shapes[:, [k]], derivatives[row]], axis=1)  # (n, 1 + r)
+        b = basis.shape[1]
+        # reduced matrices from element energies: no cancellation (see assembly.element_energies)
+        rest, per_joint = joint_energies(model, np.repeat(basis, b, axis=1), np.tile(basis, (1, b)))
+        stiff = rest.reshape(b, b)[None] + np.einsum("gj,jab->gab", gammas, per_joint.reshape(-1, b, b))
+        numerator = np.einsum("ga,gab,gb->g", coeff, stiff, coeff)
+        if rayleigh:
+            numerator = numerator / np.einsum("ga,ab,gb->g", coeff, basis.T @ (model.mass @ basis), coeff)
+        out[:, row] = np.sqrt(np.clip(numerator, 0.0, None)) / TWO_PI
+    return out
+
+
 def _smr2_modes(model, joints: JointModel, sens: Sensitivities, modes: np.ndarray, rayleigh: bool,
                 seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Frequency mean and std of the given modes by SMR2 (eq. 6-7)."""
+    """Frequency mean and std of the given modes by SMR2 (eq. 6-7) over the joint law."""
     r = np.flatnonzero(joints.random)
     if r.size == 0:
         f = sens.modes.frequency_hz[modes]
         return f.copy(), np.zeros(len(modes))
-    derivatives = eigenvector_derivatives(model, sens, modes, r)
     gamma, weights = expectation_rule(joints, seed)
-    coeff = np.concatenate([np.ones((len(gamma), 1)), gamma[:, r] - 1.0], axis=1)  # (G, 1 + r)
-    mean, std = np.empty(len(modes)), np.empty(len(modes))
-    for row, k in enumerate(modes):
-        basis = np.concatenate([sens.modes.shapes[:, [k]], derivatives[row]], axis=1)  # (n, 1 + r)
-        b = basis.shape[1]
-        pairs_x = np.repeat(basis, b, axis=1)
-        pairs_y = np.tile(basis, (1, b))
-        rest, per_joint = joint_energies(model, pairs_x, pairs_y)
-        k_rest = rest.reshape(b, b)
-        k_joint = per_joint.reshape(-1, b, b)
-        stiff = k_rest[None] + np.einsum("gj,jab->gab", gamma, k_joint)
-        numerator = np.einsum("ga,gab,gb->g", coeff, stiff, coeff)
-        if rayleigh:
-            m_red = basis.T @ (model.mass @ basis)
-            numerator = numerator / np.einsum("ga,ab,gb->g", coeff, m_red, coeff)
-        f = np.sqrt(np.clip(numerator, 0.0, None)) / TWO_PI
-        mean[row] = weights @ f
-        std[row] = np.sqrt(weights @ (f - mean[row]) ** 2)
-    return mean, std
+    f = smr2_frequencies(model, sens, modes, gamma, r, rayleigh)
+    mean = weights @ f
+    return mean, np.sqrt(weights @ (f - mean) ** 2)
 
 
 def smr2(model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed: int = 0,
