@@ -9,45 +9,25 @@ measured ones of ../shared/paper/table2_single_bolt_nominal.csv, modes paired by
 
 from __future__ import annotations
 
-import csv
-import dataclasses
-import os
-import sys
 import time
-from pathlib import Path
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+import numpy as np
 
-import numpy as np  # noqa: E402
+# build_frames sets one BLAS thread and the import path before numpy's first use
+from build_frames import (CONFIGURATIONS, HERE, TABLE2_JOINT_MODULUS, frequencies, read_table2, rms_max_error,
+                          with_joint_modulus)
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.modal import model_modes  # noqa: E402
-
-PAPER = Path(__file__).resolve().parents[1] / ".." / "shared" / "paper"
-TABLE2_JOINT_MODULUS = 11.5e9  # Pa, the paper's nominal fit (Table 2 caption)
-FRAMES = ("monolithic", "one_bolt_vertical", "one_bolt_horizontal", "two_bolt", "four_bolt")
-
-
-def frequencies(frame, count: int = 10) -> np.ndarray:
-    return model_modes(assemble(frame), count, method="sparse").frequency_hz
+from workbench.assembly import assemble
+from workbench.frame import read_frame
+from workbench.modal import model_modes
 
 
 def main() -> int:
-    with open(PAPER / "table2_single_bolt_nominal.csv", newline="", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = read_table2()
     measured = np.array([float(r["f_exp_hz"]) for r in rows])
     paper_simu = np.array([float(r["f_simu_hz"]) for r in rows])
 
-    frame = read_frame(HERE / "one_bolt_vertical.toml")
-    frame = dataclasses.replace(frame, joints=tuple(dataclasses.replace(j, youngs_modulus=TABLE2_JOINT_MODULUS)
-                                                    for j in frame.joints))
+    frame = with_joint_modulus(read_frame(HERE / "one_bolt_vertical.toml"), TABLE2_JOINT_MODULUS)
     t0 = time.perf_counter()
     model = assemble(frame)
     t1 = time.perf_counter()
@@ -62,14 +42,15 @@ def main() -> int:
     for k in range(measured.size):
         print(f"{k + 1:>4} {measured[k]:>12.2f} {ours[k]:>9.2f} {rel[k]:>+8.2%} {paper_simu[k]:>9.2f} "
               f"{rel_paper[k]:>+9.2%}")
-    print(f"ours:  RMS relative error {np.sqrt(np.mean(rel**2)):.2%}, max {np.max(np.abs(rel)):.2%}")
-    print(f"paper: RMS relative error {np.sqrt(np.mean(rel_paper**2)):.2%}, max {np.max(np.abs(rel_paper)):.2%}")
+    for label, model_hz in (("ours: ", ours), ("paper:", paper_simu)):
+        rms, worst = rms_max_error(model_hz, measured)
+        print(f"{label} RMS relative error {rms:.2%}, max {worst:.2%}")
     print(f"one model solve: assembly {1e3 * (t1 - t0):.1f} ms, 9 modes (sparse Lanczos) {1e3 * (t2 - t1):.1f} ms")
 
     print()
     print("First 10 eigenfrequencies (Hz) of the five frames, joints at their file moduli (Table 4):")
     print(f"{'frame':<20}" + "".join(f"{k:>8}" for k in range(1, 11)))
-    for name in FRAMES:
+    for name in CONFIGURATIONS:
         f = frequencies(read_frame(HERE / f"{name}.toml"), 10)
         print(f"{name:<20}" + "".join(f"{v:>8.1f}" for v in f))
     return 0

@@ -7,8 +7,6 @@ propagation methods can be timed at that scale.
 
 from __future__ import annotations
 
-import math
-
 from .frame import (FIXED, DofRef, Frame, Joint, Material, Member, PointMass, Section, Sensor,
                     Support)
 
@@ -83,6 +81,3 @@ def _node_count(frame: Frame) -> int:
     from .assembly import mesh_frame
 
     return len(mesh_frame(frame).node_xy)
-
-
-_ = math  # keep the module's imports explicit for readers
