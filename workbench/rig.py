@@ -77,7 +77,8 @@ from scipy.optimize import brentq
 from .assembly import assemble, joint_energies
 from .campaign import Campaign, Factor, write_campaign
 from .designs import sweep_preloads
-from .frame import Frame, GroundSpring, Joint, PointMass, member_length
+from .effects import DAMAGE_JOINT, EFFECTS, Effect, apply_effect, set_member
+from .frame import Frame
 from .modal import add_noise, frame_frf, model_modes
 from .outputs import json_text, write_outputs
 
@@ -96,9 +97,6 @@ __all__ = [
     "truth_path",
 ]
 
-EFFECTS = ("none", "support_compliance", "added_mass", "shear_deformation", "stinger_stiffness",
-           "axial_prestress", "joint_stiffness_shift", "amplitude_softening", "joint_damping",
-           "outside_vocabulary")
 # Paper 2.2.1: (1) hand-tight, preload < 100 N; (2) 1800 N; (3) about 6000 N.
 PAPER_LEVEL_PRELOADS_N = {"1": 50.0, "2": 1800.0, "3": 6000.0}
 AMPLITUDE_RATIOS = {"low": 1.0, "high": 5.0}  # paper 2.2.2: high is five times low
@@ -163,36 +161,6 @@ class LockedStress:
         return out
 
 
-@dataclass(frozen=True)
-class Effect:
-    """A gap between the nominal model and the tested article, injected by the rig.
-
-    ``type``: one of `EFFECTS`. ``where``: a name from the frame (support point, point or member,
-    excitation point, member, joint) or None for a global effect. ``parameters`` by type:
-
-    - support_compliance: new stiffnesses of the support's dofs, e.g. ``{"rz": 1500.0}``;
-    - added_mass: ``{"mass": kg, "rotary_inertia": kg.m2 (0), "position": 0.5}`` at a point, or
-      on a member at ``position`` (fraction of its length from its start);
-    - shear_deformation: ``{"shear_coefficient": k}`` optional (Timoshenko, default the file's);
-    - stinger_stiffness: ``{"stiffness": N/m, "dof": the excitation dof}`` added at the point;
-    - axial_prestress: ``{"axial_force": N}`` (tension positive) added to the member's;
-    - joint_stiffness_shift: ``{"factor": f}`` times the joint's mean modulus;
-    - amplitude_softening: ``{"s0": s, "ps_n": N}``: the joint's softening coefficient becomes s;
-    - joint_damping: ``{"eta": e}`` added to the joint's damping per energy share;
-    - outside_vocabulary: ``{"span": [a, b], "stiffness_factor": f}``: a cracked / thinned zone
-      of the member, its EA and EI times f (``where`` a member);
-    - none: nothing.
-    """
-
-    type: str = "none"
-    where: str | None = None
-    parameters: dict[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        if self.type not in EFFECTS:
-            raise ValueError(f"Effect: type {self.type!r} is not one of {', '.join(EFFECTS)}")
-
-
 def default_laws() -> dict[str, dict[str, float]]:
     """Calibration targets per joint group: mean modulus from the frame file (None) and sweep CoV.
 
@@ -232,85 +200,13 @@ class RigSettings:
         return np.array([z[min(k, len(z) - 1)] for k in range(count)])
 
 
-# ---------------------------------------------------------------------------------------- effects
-
-def _set_member(frame: Frame, name: str, **changes) -> Frame:
-    frame.member(name)
-    return replace(frame, members=tuple(replace(m, **changes) if m.name == name else m for m in frame.members))
-
-
-def apply_effect(frame: Frame, effect: Effect | None) -> Frame:
-    """The true frame: ``frame`` with a frame-level effect applied (joint-level ones return it as is)."""
-    if effect is None or effect.type == "none":
-        return frame
-    t, w, p = effect.type, effect.where, dict(effect.parameters)
-    if t == "support_compliance":
-        supports = [s for s in frame.supports if s.point == w]
-        if not supports:
-            raise ValueError(f"support_compliance: {w!r} is not a support point")
-        bad = set(p) - {"ux", "uy", "rz"}
-        if bad or not p:
-            raise ValueError(f"support_compliance: parameters must be dof stiffnesses, got {p}")
-        new = tuple(replace(s, **{k: float(v) for k, v in p.items()}) if s.point == w else s
-                    for s in frame.supports)
-        return replace(frame, supports=new)
-    if t == "added_mass":
-        mass, inertia = float(p["mass"]), float(p.get("rotary_inertia", 0.0))
-        point = w
-        if w not in frame.points:
-            member = frame.member(w)
-            s = float(p.get("position", 0.5))
-            (x0, y0), (x1, y1) = frame.points[member.start], frame.points[member.end]
-            xy = (x0 + s * (x1 - x0), y0 + s * (y1 - y0))
-            size = member_length(frame, member)
-            same = [n for n, q in frame.points.items() if math.hypot(q[0] - xy[0], q[1] - xy[1]) < 1e-9 * size]
-            point = same[0] if same else f"{w}_added_mass"  # an existing point there carries the mass
-            if not same:
-                frame = replace(frame, points={**frame.points, point: xy})
-        return replace(frame, masses=frame.masses + (PointMass(point, mass, inertia),))
-    if t == "shear_deformation":
-        sections = frame.sections
-        if "shear_coefficient" in p:
-            sections = {k: replace(v, shear_coefficient=float(p["shear_coefficient"])) for k, v in sections.items()}
-        return replace(frame, beam_theory="timoshenko", sections=sections)
-    if t == "stinger_stiffness":
-        dof = p.get("dof", frame.excitation.dof if frame.excitation else "ux")
-        if w not in frame.points:
-            raise ValueError(f"stinger_stiffness: {w!r} is not a point")
-        return replace(frame, springs=frame.springs + (GroundSpring(w, dof, float(p["stiffness"])),))
-    if t == "axial_prestress":
-        return _set_member(frame, w, axial_force=frame.member(w).axial_force + float(p["axial_force"]))
-    if t == "joint_stiffness_shift":
-        frame.joint(w)
-        return replace(frame, joints=tuple(replace(x, youngs_modulus=x.youngs_modulus * float(p["factor"]))
-                                           if x.name == w else x for x in frame.joints))
-    if t in ("amplitude_softening", "joint_damping"):
-        frame.joint(w)
-        return frame
-    if t == "outside_vocabulary":
-        member = frame.member(w)
-        a, b = (float(v) for v in p["span"])
-        if not 0.0 <= a < b <= member_length(frame, member):
-            raise ValueError(f"outside_vocabulary: span {p['span']} is not inside member {w!r}")
-        for j in frame.joints:
-            if j.member == w and a < j.span[1] and j.span[0] < b:
-                raise ValueError(f"outside_vocabulary: span {p['span']} overlaps joint {j.name}")
-        e = frame.materials[member.material].youngs_modulus * float(p["stiffness_factor"])
-        # A zone of reduced modulus is exactly what a joint zone is; gamma stays 1 on it.
-        return replace(frame, joints=frame.joints + (Joint(_DAMAGE, w, (a, b), e, 0.0, _DAMAGE),))
-    raise ValueError(f"effect {t!r} is not handled")
-
-
-_DAMAGE = "_damage"
-
-
 # ------------------------------------------------------------------------------------- simulation
 
 def _laws(frame: Frame, settings: RigSettings, effect: Effect | None) -> dict[str, JointLaw]:
     """One law per joint of the (true) frame, calibrated per group on the sweep."""
     laws = {}
     for j in frame.joints:
-        if j.name == _DAMAGE:
+        if j.name == DAMAGE_JOINT:
             continue
         cov = settings.group_cov.get(j.group, j.cov if j.cov > 0 else 0.05)
         law = JointLaw.calibrated(j.youngs_modulus, cov, **settings.law_shape)
@@ -325,7 +221,7 @@ def _laws(frame: Frame, settings: RigSettings, effect: Effect | None) -> dict[st
 def _test_conditions(frame: Frame, factors: tuple[Factor, ...], levels: dict[str, str],
                      settings: RigSettings) -> tuple[dict[str, float], float]:
     """Preload (N) of every joint and the amplitude ratio of one test."""
-    preload = {j.name: settings.level_preloads_n["3"] for j in frame.joints if j.name != _DAMAGE}
+    preload = {j.name: settings.level_preloads_n["3"] for j in frame.joints if j.name != DAMAGE_JOINT}
     amplitude = settings.amplitude_ratios["low"]
     for f in factors:
         level = str(levels[f.name])
@@ -389,10 +285,10 @@ def simulate_campaign(frame: Frame, factors, design: list[dict[str, str]], setti
                                                     for k, m in true_frame.materials.items()})
         locked = settings.locked_stress.forces(true_frame, preload) if settings.locked_stress else {}
         for member, force in locked.items():
-            test_frame = _set_member(test_frame, member, axial_force=test_frame.member(member).axial_force + force)
-        if any(j.name == _DAMAGE for j in test_frame.joints):  # the damaged zone's material follows the temperature
+            test_frame = set_member(test_frame, member, axial_force=test_frame.member(member).axial_force + force)
+        if any(j.name == DAMAGE_JOINT for j in test_frame.joints):  # the damaged zone's material follows the temperature
             test_frame = replace(test_frame, joints=tuple(
-                replace(j, youngs_modulus=j.youngs_modulus * t_factor) if j.name == _DAMAGE else j
+                replace(j, youngs_modulus=j.youngs_modulus * t_factor) if j.name == DAMAGE_JOINT else j
                 for j in test_frame.joints))
         model = assemble(test_frame)
         gamma = np.array([moduli[j.name] / j.youngs_modulus if j.name in moduli else 1.0 for j in test_frame.joints])
