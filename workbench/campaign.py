@@ -39,6 +39,9 @@ __all__ = [
     "campaign_toml",
     "frf_set",
     "frequency_data",
+    "PAPER_AMPLITUDE_RATIOS",
+    "amplitude_of_tests",
+    "modal_data",
 ]
 
 FACTOR_KINDS = ("tightening", "amplitude", "other")
@@ -434,12 +437,40 @@ def frf_set(campaign: Campaign, test_id) -> FRFSet:
 
 
 
+def _mode_table(campaign: Campaign, count: int | None = None) -> tuple[pd.DataFrame, str] | None:
+    """Per-test modes (test_id, mode, frequency_hz, damping_ratio): ``modes.csv``, else extracted.
+
+    Extraction is by circle fit of every test's FRFs, bands shared across tests; modes whose fit
+    is flagged ``weak`` or ``poor_circle`` are left out of that test. None without modes or FRFs.
+    """
+    source = str(campaign.path or campaign.name)
+    if campaign.modes is None and campaign.frf is not None:
+        from .extraction import extract_tests
+
+        sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
+        _, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
+                                     {t: s.values for t, s in sets.items()}, campaign.quantity, count=count)
+        rows = [(t, k, e.frequency_hz, e.damping_ratio) for t, per_mode in estimates.items()
+                for k, e in enumerate(per_mode, start=1) if not {"weak", "poor_circle"} & set(e.flags)]
+        return (pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz", "damping_ratio"]),
+                source + " (modes by circle fit of its FRFs)")
+    if campaign.modes is not None:
+        return campaign.modes, source + "/modes.csv"
+    return None
+
+
+def _wide(campaign: Campaign, table: pd.DataFrame, column: str, count: int | None) -> pd.DataFrame:
+    wide = table.pivot(index="test_id", columns="mode", values=column).sort_index(axis=1)
+    if count is not None:
+        wide = wide.loc[:, wide.columns <= count]
+    return wide.reindex(campaign.test_ids)
+
+
 def frequency_data(campaign: Campaign, count: int | None = None):
     """The campaign's measured eigenfrequencies for identification (`workbench.identify.FrequencyData`).
 
-    From ``modes.csv`` when there is one, else extracted from the FRFs by circle fit (every test,
-    bands shared across tests; modes whose fit is flagged ``weak`` or ``poor_circle`` are left out
-    of that test), else the published moments (no individual tests).
+    From ``modes.csv`` when there is one, else extracted from the FRFs by circle fit (`_mode_table`),
+    else the published moments (no individual tests).
 
     Parameters
     ----------
@@ -448,29 +479,67 @@ def frequency_data(campaign: Campaign, count: int | None = None):
     from .identify import FrequencyData
 
     source = str(campaign.path or campaign.name)
-    if campaign.modes is None and campaign.frf is not None:
-        from .extraction import extract_tests
-
-        sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
-        _, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
-                                     {t: s.values for t, s in sets.items()}, campaign.quantity, count=count)
-        rows = [(t, k, e.frequency_hz) for t, per_mode in estimates.items() for k, e in enumerate(per_mode, start=1)
-                if not {"weak", "poor_circle"} & set(e.flags)]
-        table = pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz"])
-        source += " (modes by circle fit of its FRFs)"
-    elif campaign.modes is not None:
-        table = campaign.modes
-        source += "/modes.csv"
-    elif campaign.moments is not None:
+    found = _mode_table(campaign, count)
+    if found is None and campaign.moments is not None:
         m = campaign.moments.sort_values("mode")
         if count is not None:
             m = m[m["mode"] <= count]
         return FrequencyData(m["mode"].to_numpy(), m["mean_hz"].to_numpy(), m["std_hz"].to_numpy(),
                              source=source + "/moments.csv")
-    else:
+    if found is None:
         _fail(source, "holds no modes, FRFs or moments to identify from")
-    wide = table.pivot(index="test_id", columns="mode", values="frequency_hz").sort_index(axis=1)
-    if count is not None:
-        wide = wide.loc[:, wide.columns <= count]
-    wide = wide.reindex(campaign.test_ids)
+    table, source = found
+    wide = _wide(campaign, table, "frequency_hz", count)
     return FrequencyData.from_tests(tuple(wide.index), wide.columns.to_numpy(), wide.to_numpy(float), source)
+
+
+# Paper 2.2.2: the high excitation amplitude is five times the low one.
+PAPER_AMPLITUDE_RATIOS = {"low": 1.0, "high": 5.0}
+
+
+def amplitude_of_tests(campaign: Campaign) -> np.ndarray | None:
+    """Each test's excitation amplitude relative to the lowest level, or None without an amplitude factor.
+
+    Level keys that are numbers (volts, newtons, ...) are taken as amplitudes; ``low`` and ``high``
+    follow the paper (`PAPER_AMPLITUDE_RATIOS`).
+    """
+    factors = [f for f in campaign.factors if f.kind == "amplitude"]
+    if not factors:
+        return None
+    factor = factors[0]
+    keys = campaign.design.set_index("test_id").reindex(campaign.test_ids)[factor.name].astype(str)
+    try:
+        values = np.array([float(k) for k in keys])
+    except ValueError:
+        unknown = sorted(set(keys) - set(PAPER_AMPLITUDE_RATIOS))
+        if unknown:
+            _fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels {unknown} are neither "
+                  f"numbers nor {'/'.join(PAPER_AMPLITUDE_RATIOS)}")
+        values = np.array([PAPER_AMPLITUDE_RATIOS[k] for k in keys])
+    if np.any(values <= 0) or not np.all(np.isfinite(values)):
+        _fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels must be positive numbers")
+    return values / values.min()
+
+
+def modal_data(campaign: Campaign, count: int | None = None):
+    """The campaign's modes for the diagnosis (`workbench.diagnosis.ModalData`).
+
+    Every test's frequencies and damping ratios (``modes.csv`` or circle fit) with its excitation
+    amplitude; else the published moments (one row of means, the published std, 9 tests assumed
+    behind them when the campaign does not say).
+    """
+    from .diagnosis import ModalData
+
+    found = _mode_table(campaign, count)
+    if found is None and campaign.moments is not None:
+        m = campaign.moments.sort_values("mode")
+        if count is not None:
+            m = m[m["mode"] <= count]
+        return ModalData(m["mean_hz"].to_numpy()[None, :], std_hz=m["std_hz"].to_numpy(),
+                         tests_count=len(campaign.test_ids) or 9, modes=m["mode"].to_numpy())
+    if found is None:
+        _fail(str(campaign.path or campaign.name), "holds no modes, FRFs or moments to diagnose")
+    table, _ = found
+    f = _wide(campaign, table, "frequency_hz", count)
+    damping = _wide(campaign, table, "damping_ratio", count).to_numpy(float) if "damping_ratio" in table else None
+    return ModalData(f.to_numpy(float), damping, amplitude_of_tests(campaign), modes=f.columns.to_numpy())

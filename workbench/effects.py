@@ -34,10 +34,12 @@ class Effect:
     - support_compliance: new stiffnesses of the support's dofs, e.g. ``{"rz": 1500.0}``;
     - added_mass: ``{"mass": kg, "rotary_inertia": kg.m2 (0), "position": 0.5}`` at a point, or
       on a member at ``position`` (fraction of its length from its start);
-    - shear_deformation: ``{"shear_coefficient": k}`` optional (Timoshenko, default the file's);
+    - shear_deformation: ``{"shear_coefficient": k}`` optional (Timoshenko, default the file's, else
+      5/6); ``poisson_ratio`` (default 0.3) for materials whose file gives none;
     - stinger_stiffness: ``{"stiffness": N/m, "dof": the excitation dof}`` added at the point;
     - axial_prestress: ``{"axial_force": N}`` (tension positive) added to the member's;
-    - joint_stiffness_shift: ``{"factor": f}`` times the joint's mean modulus;
+    - joint_stiffness_shift: ``{"factor": f}`` times the joint's mean modulus (every joint's when
+      ``where`` is None: the file's joint model itself is off);
     - amplitude_softening: ``{"s0": s, "ps_n": N}``: the joint's softening coefficient becomes s;
     - joint_damping: ``{"eta": e}`` added to the joint's damping per energy share;
     - outside_vocabulary: ``{"span": [a, b], "stiffness_factor": f}``: a cracked / thinned zone
@@ -93,7 +95,12 @@ def apply_effect(frame: Frame, effect: Effect | None) -> Frame:
         sections = frame.sections
         if "shear_coefficient" in p:
             sections = {k: replace(v, shear_coefficient=float(p["shear_coefficient"])) for k, v in sections.items()}
-        return replace(frame, beam_theory="timoshenko", sections=sections)
+        # Timoshenko needs G: a file written for Euler-Bernoulli may leave these out (rectangle, metal)
+        sections = {k: v if v.shear_coefficient else replace(v, shear_coefficient=5.0 / 6.0) for k, v in sections.items()}
+        nu = float(p.get("poisson_ratio", 0.3))
+        materials = {k: v if v.poisson_ratio is not None else replace(v, poisson_ratio=nu)
+                     for k, v in frame.materials.items()}
+        return replace(frame, beam_theory="timoshenko", sections=sections, materials=materials)
     if t == "stinger_stiffness":
         dof = p.get("dof", frame.excitation.dof if frame.excitation else "ux")
         if w not in frame.points:
@@ -102,9 +109,10 @@ def apply_effect(frame: Frame, effect: Effect | None) -> Frame:
     if t == "axial_prestress":
         return set_member(frame, w, axial_force=frame.member(w).axial_force + float(p["axial_force"]))
     if t == "joint_stiffness_shift":
-        frame.joint(w)
+        if w is not None:
+            frame.joint(w)
         return replace(frame, joints=tuple(replace(x, youngs_modulus=x.youngs_modulus * float(p["factor"]))
-                                           if x.name == w else x for x in frame.joints))
+                                           if w is None or x.name == w else x for x in frame.joints))
     if t in ("amplitude_softening", "joint_damping"):
         frame.joint(w)
         return frame

@@ -75,7 +75,7 @@ import pandas as pd
 from scipy.optimize import brentq
 
 from .assembly import assemble, joint_energies
-from .campaign import Campaign, Factor, write_campaign
+from .campaign import PAPER_AMPLITUDE_RATIOS, Campaign, Factor, write_campaign
 from .designs import sweep_preloads
 from .effects import DAMAGE_JOINT, EFFECTS, Effect, apply_effect, set_member
 from .frame import Frame
@@ -99,7 +99,7 @@ __all__ = [
 
 # Paper 2.2.1: (1) hand-tight, preload < 100 N; (2) 1800 N; (3) about 6000 N.
 PAPER_LEVEL_PRELOADS_N = {"1": 50.0, "2": 1800.0, "3": 6000.0}
-AMPLITUDE_RATIOS = {"low": 1.0, "high": 5.0}  # paper 2.2.2: high is five times low
+AMPLITUDE_RATIOS = PAPER_AMPLITUDE_RATIOS  # paper 2.2.2: high is five times low
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,217 @@
+"""Outputs of the gap diagnosis: ``diagnosis.json``, its readable ``index.html``, and the blind validation.
+
+`diagnose_campaign` is ``workbench diagnose``; `validate` is ``workbench validate-diagnosis``. The
+numbers come from `workbench.diagnosis` and `workbench.rig_cases`; this module draws and writes.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .campaign import load_campaign, modal_data
+from .diagnosis import Diagnosis, diagnose, diagnosis_record
+from .outputs import csv_text, json_text, write_outputs
+
+__all__ = ["diagnose_campaign", "diagnosis_html", "validate", "validation_text"]
+
+_CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;font-size:.9em;margin:.6em 0}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:right}
+th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.verdict{font-size:1.2em;padding:.6em 1em;
+background:#eef5ff;border-left:4px solid #36c}.synthetic{background:#fff3cd;border:1px solid #e0b000;padding:.4em .8em}
+.real{background:#e7f6e7;border:1px solid #5a5;padding:.4em .8em}img{max-width:100%}figure{margin:1em 0}
+figcaption{font-size:.9em;color:#555}code{background:#f5f5f5;padding:0 .2em}"""
+
+
+def _figures(d: Diagnosis) -> list[tuple[bytes, str]]:
+    from .plots import figure_png, plt
+
+    out = []
+    modes = np.asarray(d.modes)
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    width = 0.8 / max(len(d.amplitude), 1)
+    for c, a in enumerate(d.amplitude):
+        x = modes - 0.4 + width * (c + 0.5)
+        base = 100 * (d.baseline_hz[c] / d.measured_hz[c] - 1)
+        err = 200 * d.frequency_se_hz[c] / d.measured_hz[c]
+        label = "" if len(d.amplitude) == 1 else f" (amplitude x{a:g})"
+        ax.bar(x, base, width, color="tab:red", alpha=0.35 + 0.5 * c / max(len(d.amplitude), 1),
+               label=f"nominal model{label}")
+        ax.errorbar(x, np.zeros_like(x), yerr=err, fmt="none", ecolor="k", capsize=2,
+                    label="2 standard errors of the measured mean" if c == 0 else None)
+        if d.best_hz is not None:
+            ax.plot(x, 100 * (d.best_hz[c] / d.measured_hz[c] - 1), "o", color="tab:blue",
+                    label=f"with {d.verdict}" if c == 0 else None)
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xlabel("mode")
+    ax.set_ylabel("model / measured - 1 (%)")
+    ax.set_xticks(modes)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    out.append((figure_png(fig), "Per-mode frequency residual of the nominal model (bars) and of the model with the "
+                "verdict's effect fitted (dots), against twice the standard error of each measured mean."))
+    plt.close(fig)
+
+    top = d.localisation[:12][::-1]
+    if top:
+        fig, ax = plt.subplots(figsize=(9, 0.3 * len(top) + 1.0))
+        ax.barh([f"{r.region} ({r.kind}, {r.mechanism})" for r in top], [r.score for r in top], color="tab:purple")
+        ax.set_xlim(0, 1)
+        ax.set_xlabel("share of the weighted residual explained by the region alone")
+        fig.tight_layout()
+        out.append((figure_png(fig), "Localisation: how much of the residual a change of each region's stiffness, mass "
+                    "or damping explains, from the modes' strain and kinetic energy (first order)."))
+        plt.close(fig)
+
+    ranked = d.ranking[:12][::-1]
+    if ranked:
+        fig, ax = plt.subplots(figsize=(9, 0.3 * len(ranked) + 1.2))
+        labels = [f"{c.effect} @ {c.where}" if c.where else c.effect for c in ranked]
+        held = [c.heldout_freq_rms_rel_error if c.channel == "frequency" else c.heldout_damping_rms_error for c in ranked]
+        ax.barh(labels, held, color=["tab:green" if c.channel == "frequency" else "tab:orange" for c in ranked])
+        ax.axvline(d.baseline.heldout_freq_rms_rel_error, color="tab:red", ls="--", label="nominal model (frequency)")
+        ax.set_xscale("log")
+        ax.set_xlabel("held-out RMS error (relative frequency; damping ratio for joint_damping, orange)")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        out.append((figure_png(fig), "Candidates ranked by held-out error (leave one mode out): the lower, the better "
+                    "the effect predicts modes it was not fitted on."))
+        plt.close(fig)
+    return out
+
+
+def _table(header: list[str], rows: list[list[Any]]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>" for row in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _fmt(value: Any, spec: str = ".3g") -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return format(value, spec)
+    return str(value)
+
+
+def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> str:
+    """A self-contained page: verdict, residuals, localisation, ranking, protocol."""
+    v = record["verdict"]
+    banner = ('<p class="synthetic">SYNTHETIC campaign (virtual test rig): not a measurement.</p>' if synthetic
+              else '<p class="real">Real measured data.</p>')
+    meaning = {"none": "the nominal model already fits within measurement scatter",
+               "unexplained": "a real gap remains that no effect of the vocabulary brings down to the scatter"}
+    verdict = (f"<b>{html.escape(v['effect'])}</b>" + (f" at <b>{html.escape(str(v['where']))}</b>" if v["where"] else "")
+               + f": held-out error shrinks by {100 * v['shrinkage']:.0f} %" if v["effect"] not in meaning
+               else f"<b>{v['effect']}</b>: {meaning[v['effect']]}")
+    figures = "".join(f'<figure><img alt="{html.escape(cap[:60])}" src="data:image/png;base64,'
+                      f'{base64.b64encode(png).decode()}"><figcaption>{html.escape(cap)}</figcaption></figure>'
+                      for png, cap in _figures(diagnosis))
+    base = record["baseline"]
+    modes = _table(["mode", "measured (Hz)", "model (Hz)", "model/measured - 1"],
+                   [[m["mode"], f"{m['measured_hz']:.2f}", f"{m['model_hz']:.2f}", f"{100 * m['rel_error']:+.3f} %"]
+                    for m in base["modes"]])
+    loc = _table(["region", "kind", "mechanism", "score"],
+                 [[r["region"], r["kind"], r["mechanism"], f"{r['score']:.2f}"] for r in record["localization"][:12]])
+    rank = _table(["effect", "where", "parameters", "RMS rel. error", "held-out", "held-out chi2", "BIC"],
+                  [[c["effect"], _fmt(c["where"]), ", ".join(f"{k}={_fmt(x)}" for k, x in c["parameters"].items()),
+                    _fmt(c["freq_rms_rel_error"]), _fmt(c["heldout_freq_rms_rel_error"]), _fmt(c["heldout_chi2"], ".4g"),
+                    _fmt(c["bic"], ".4g")] for c in record["ranking"][:15]])
+    return f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Diagnosis: {html.escape(record['campaign'])}</title>
+<style>{_CSS}</style></head><body>
+<h1>Sim-to-real gap diagnosis: {html.escape(record['campaign'])}</h1>{banner}
+<p>Source: {html.escape(source)}. Observations: {base['observations']['frequency']} frequency and
+{base['observations']['damping']} damping means. Wall time {record['wall_time_s']:.1f} s.</p>
+<p class="verdict">Verdict: {verdict}</p>
+<h2>Where the model misses</h2>{figures}
+<h2>Baseline: nominal model against the measured means</h2>
+<p>RMS relative frequency error {100 * base['freq_rms_rel_error']:.3f} %, chi-square {base['chi2']:.4g}.</p>{modes}
+<h2>Localisation</h2>{loc}
+<h2>Candidate effects, best first</h2>{rank}
+<h2>Protocol</h2><p>{html.escape(record['protocol'])}. Each candidate is the nominal frame changed by one effect
+of the vocabulary (CONTRACTS.md section 3) with one parameter (two for a mass on a member: its position),
+fitted on exact eigen-solutions. Verdict rules: <code>none</code> when the nominal model's chi-square per
+observation is within the scatter; otherwise the best candidate if its held-out chi-square per observation is
+within the scatter allowance and it shrinks the held-out error meaningfully; else <code>unexplained</code>.
+See <code>workbench/diagnosis.py</code>.</p>
+</body></html>
+"""
+
+
+def diagnose_campaign(path: str | Path, out: str | Path, force: bool = False, count: int | None = None,
+                      progress: Callable[[str], None] | None = None) -> dict:
+    """``workbench diagnose``: read, diagnose, write ``diagnosis.json`` and ``index.html`` together."""
+    campaign = load_campaign(path)
+    if progress:
+        progress("modes of every test (modes.csv or circle fit)")
+    data = modal_data(campaign, count)
+    result = diagnose(campaign.frame, data, progress)
+    record = diagnosis_record(campaign.name, result)
+    record["synthetic"] = bool(campaign.synthetic)
+    page = diagnosis_html(record, result, campaign.synthetic, str(campaign.source or path))
+    write_outputs(out, {"diagnosis.json": json_text(record), "index.html": page}, force=force)
+    return record
+
+
+def validate(cases: int, seed: int, frame_path: str | Path, out: str | Path | None = None, force: bool = False,
+             progress: bool = False) -> dict:
+    """``workbench validate-diagnosis``: ``cases`` blind cases from ``seed`` (`workbench.rig_cases`)."""
+    from .frame import read_frame
+    from .rig_cases import CASE_TYPES, run_case, summarise
+
+    frame = read_frame(frame_path)
+    kinds = [CASE_TYPES[i % len(CASE_TYPES)] for i in range(cases)]
+    results = []
+    iterator = range(cases)
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(iterator, desc="blind cases", unit="case")
+    start = time.perf_counter()
+    for i in iterator:
+        results.append(run_case(frame, kinds[i], seed * 100_003 + i))
+    summary = summarise(results)
+    summary.update({"seed": seed, "frame": str(frame_path), "wall_time_s": time.perf_counter() - start})
+    if out is not None:
+        rows = [(r.seed, r.truth, r.truth_where, json_text(r.truth_parameters).strip(), r.expected, r.verdict, r.where,
+                 r.shrinkage, r.effect_right, r.place_right, r.wall_time_s) for r in results]
+        write_outputs(out, {"summary.json": json_text(summary),
+                            "cases.csv": csv_text(["seed", "truth", "truth_where", "truth_parameters", "expected",
+                                                   "verdict", "where", "shrinkage", "effect_right", "place_right",
+                                                   "wall_time_s"], rows)}, force=force)
+    summary["results"] = results
+    return summary
+
+
+def validation_text(summary: dict) -> str:
+    """The confusion matrix, accuracies and shrinkage quantiles as printed by the command."""
+    confusion = summary["confusion"]
+    verdicts = [v for v in next(iter(confusion.values())) if any(row[v] for row in confusion.values())]
+    short = {v: v.replace("_", " ")[:11] for v in verdicts}
+    lines = [f"blind validation: {summary['cases']} cases, seed {summary['seed']}, frame {summary['frame']}",
+             "confusion (rows: hidden effect, columns: verdict)",
+             f"{'':22s}" + "".join(f"{short[v]:>12s}" for v in verdicts)]
+    for truth, row in confusion.items():
+        if sum(row.values()):
+            lines.append(f"{truth:22s}" + "".join(f"{row[v]:12d}" for v in verdicts))
+    place = summary["place_accuracy"]
+    lines += [f"top-1 effect right: {100 * summary['top1_accuracy']:.1f} %",
+              f"place right: {'-' if place is None else f'{100 * place:.1f} %'} of the {summary['place_checked']} right "
+              "verdicts that have a place",
+              f"no effect -> none: {summary['none_right']}; outside the vocabulary -> unexplained: "
+              f"{summary['outside_right']}"]
+    for key, label in (("shrinkage_right_verdicts", "shrinkage, right verdicts"),
+                       ("shrinkage_all_effects", "shrinkage, every vocabulary case (0 when wrong)")):
+        q = summary[key]
+        if q:
+            lines.append(f"{label}: median {100 * q['median']:.1f} % (min {100 * q['min']:.1f}, p10 "
+                         f"{100 * q['p10']:.1f}, p90 {100 * q['p90']:.1f}, max {100 * q['max']:.1f})")
+    lines.append(f"mean diagnosis time per case {summary['mean_wall_time_s']:.1f} s; total {summary['wall_time_s']:.0f} s")
+    return "\n".join(lines)
