@@ -179,3 +179,32 @@ def test_identify_bayes_refuses_published_moments(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "only published moments" in err and err.count("\n") == 1
     assert not (tmp_path / "id").exists()
+
+
+def test_demo_without_the_bundled_campaigns_exits_2_with_one_line(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--campaigns", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bundled campaigns are not there" in err and "--campaigns" in err
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_demo_runs_the_main_job_from_the_repository_root(tmp_path):
+    """`workbench demo` as the README runs it (fewer samples): one report, its time printed last."""
+    from conftest import REPO
+
+    out = tmp_path / "demo"
+    done = subprocess.run([sys.executable, "-m", "workbench.cli", "demo", "--out", str(out), "--samples", "100",
+                           "--steps", "400"], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert [p.name for p in out.iterdir()] == ["index.html"]
+    assert done.stdout.strip().endswith(" s") and "demo report written to" in done.stdout
+    text = (out / "index.html").read_text(encoding="utf-8")
+    for name in ("one_bolt_vertical_sweep", "one_bolt_horizontal_sweep", "two_bolt_table5", "four_bolt_table6"):
+        assert name in text
+    assert "SYNTHETIC - virtual test rig" in text and 'src="http' not in text
+    # the demo replaces its own report without --force
+    again = subprocess.run([sys.executable, "-m", "workbench.cli", "demo", "--out", str(out), "--samples", "20",
+                            "--steps", "100"], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr

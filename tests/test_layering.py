@@ -9,7 +9,8 @@ import pytest
 
 NUMERICAL = ["workbench", "workbench.frame", "workbench.elements", "workbench.assembly", "workbench.modal",
              "workbench.generate", "workbench.outputs", "workbench.stochastic", "workbench.smr", "workbench.designs",
-             "workbench.circlefit", "workbench.extraction", "workbench.identify", "workbench.bayes", "workbench.surrogate"]
+             "workbench.circlefit", "workbench.extraction", "workbench.identify", "workbench.bayes", "workbench.surrogate", "workbench.prediction", "workbench.effects", "workbench.diagnosis",
+             "workbench.workflow", "workbench.measured"]
 
 
 @pytest.mark.parametrize("module", NUMERICAL)

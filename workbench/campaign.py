@@ -445,13 +445,12 @@ def _mode_table(campaign: Campaign, count: int | None = None) -> tuple[pd.DataFr
     """
     source = str(campaign.path or campaign.name)
     if campaign.modes is None and campaign.frf is not None:
-        from .extraction import extract_tests
+        from .measured import extract_campaign
 
-        sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
-        _, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
-                                     {t: s.values for t, s in sets.items()}, campaign.quantity, count=count)
-        rows = [(t, k, e.frequency_hz, e.damping_ratio) for t, per_mode in estimates.items()
-                for k, e in enumerate(per_mode, start=1) if not {"weak", "poor_circle"} & set(e.flags)]
+        extraction = extract_campaign(campaign, count=count)
+        f, d = extraction.frequency_hz(), extraction.damping_ratio()  # NaN where weak or poor_circle
+        rows = [(t, k + 1, f[i, k], d[i, k]) for i, t in enumerate(extraction.tests) for k in range(f.shape[1])
+                if np.isfinite(f[i, k])]
         return (pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz", "damping_ratio"]),
                 source + " (modes by circle fit of its FRFs)")
     if campaign.modes is not None:

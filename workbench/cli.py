@@ -69,26 +69,22 @@ def _propagate(args: argparse.Namespace) -> str:
 
 
 def _extract(args: argparse.Namespace) -> str:
-    from .campaign import frf_set, load_campaign
-    from .extraction import extract_tests
+    from .campaign import load_campaign
+    from .measured import extract_campaign
 
     campaign = load_campaign(args.campaign)
-    if campaign.frf is None:
-        raise ValueError(f"{args.campaign}: frf.csv: the campaign has no FRFs to extract modes from")
-    sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
     bands = None
     if args.bands:
         bands = [tuple(float(v) for v in band.split(":")) for band in args.bands.split(",")]
-    bands, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
-                                     {t: s.values for t, s in sets.items()}, campaign.quantity, bands, args.count)
+    extraction = extract_campaign(campaign, bands, args.count)
     modes_rows, quality_rows, flagged = [], [], 0
-    for t, per_mode in estimates.items():
+    for t, per_mode in extraction.estimates.items():
         for k, est in enumerate(per_mode, start=1):
             modes_rows.append((t, k, est.frequency_hz, est.damping_ratio))
             flagged += bool(est.flags)
             quality_rows.append((t, k, "combined", est.frequency_hz, est.damping_ratio, est.damping_scatter,
                                  "", "", est.curves_used, "|".join(est.flags)))
-            for sensor, fit, weight in zip(sets[t].responses, est.fits, est.weights):
+            for sensor, fit, weight in zip(extraction.sets[t].responses, est.fits, est.weights):
                 quality_rows.append((t, k, sensor, fit.frequency_hz, fit.damping_ratio, fit.damping_scatter,
                                      fit.circle_error, fit.points_used, weight, "|".join(fit.flags)))
     write_outputs(args.out, {
@@ -97,8 +93,8 @@ def _extract(args: argparse.Namespace) -> str:
                                  "circle_error", "points_used", "weight", "flags"], quality_rows),
     }, force=args.force)
     note = f"; {flagged} flagged (see quality.csv)" if flagged else ""
-    return (f"{len(bands)} modes x {len(estimates)} tests of {campaign.name!r} by circle fit{note}; "
-            f"written to {args.out}")
+    return (f"{len(extraction.bands)} modes x {len(extraction.estimates)} tests of {campaign.name!r} by circle fit"
+            f"{note}; written to {args.out}")
 
 
 def _identify(args: argparse.Namespace) -> str:
@@ -130,6 +126,66 @@ def _identify(args: argparse.Namespace) -> str:
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
                         for name, j in record["joints"].items())
     return f"{args.method} on {campaign.name!r} ({data.source}): {summary}; written to {args.out}"
+
+
+def _notify(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def _write_report(run, out: str, force: bool, start: float) -> str:
+    from .report import render_report
+
+    text = render_report(run, time.perf_counter() - start)
+    write_outputs(out, {"index.html": text}, force=force)
+    return f"{out}/index.html"
+
+
+def _report(args: argparse.Namespace) -> str:
+    from pathlib import Path
+
+    from .workflow import report_run
+
+    start = time.perf_counter()
+    if (Path(args.out) / "index.html").exists() and not args.force:  # fail before minutes of work
+        raise OutputExistsError(f"{Path(args.out) / 'index.html'}: exists; pass --force to replace it")
+    run = report_run(args.campaign, joints_from=args.joints_from or (), seed=args.seed, samples=args.samples,
+                     bayes=not args.no_bayes, bayes_steps=args.steps, workers=args.workers,
+                     progress=sys.stderr.isatty(), notify=_notify)
+    return f"report of {run.studies[0].name!r} written to {_write_report(run, args.out, args.force, start)}"
+
+
+DEMO_OUT = "reports/demo"
+
+
+def _demo(args: argparse.Namespace) -> str:
+    from .workflow import demo_run
+
+    start = time.perf_counter()
+    run = demo_run(args.campaigns, seed=args.seed, samples=args.samples, bayes_steps=args.steps,
+                   workers=args.workers, progress=sys.stderr.isatty(), notify=_notify)
+    # the demo's report is the main job's output: it replaces its own index.html on every run
+    return f"demo report written to {_write_report(run, args.out, True, start)}"
+
+
+def _diagnose(args: argparse.Namespace) -> str:
+    from .diagnosis_report import diagnose_campaign
+
+    def say(message: str) -> None:
+        print(f"diagnose: {message}", file=sys.stderr, flush=True)
+
+    record = diagnose_campaign(args.campaign, args.out, args.force, args.count, say)
+    v = record["verdict"]
+    where = f" at {v['where']}" if v["where"] else ""
+    return (f"{record['campaign']!r}: {v['effect']}{where}, shrinkage {100 * v['shrinkage']:.0f} % (baseline RMS "
+            f"{100 * record['baseline']['freq_rms_rel_error']:.3f} %); written to {args.out}")
+
+
+def _validate_diagnosis(args: argparse.Namespace) -> str:
+    from .diagnosis_report import validate, validation_text
+
+    summary = validate(args.cases, args.seed, args.frame, args.out, args.force, progress=sys.stderr.isatty())
+    print(validation_text(summary))
+    return f"{summary['cases']} blind cases" + (f"; written to {args.out}" if args.out else "")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -168,6 +224,43 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the joint draws (default 0)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
     p.add_argument("--workers", type=_positive_int, default=1, help="Monte Carlo worker processes")
+
+    p = command("report", "a self-contained HTML identification report of a campaign (index.html)", _report)
+    p.add_argument("campaign", help="campaign directory (FRFs, modes.csv or moments.csv)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
+    p.add_argument("--samples", type=_positive_int, default=1000,
+                   help="Monte Carlo samples of the Figure 11 reference and of the FRF bands (default 1000)")
+    p.add_argument("--steps", type=_positive_int, default=3000,
+                   help="emcee steps kept per walker (default 3000; burn-in a quarter of it, at most 500)")
+    p.add_argument("--no-bayes", action="store_true", help="skip the Bayesian identification")
+    p.add_argument("--joints-from", action="append", metavar="CAMPAIGN",
+                   help="section 5: identify joint groups on this (one-bolt) campaign and predict CAMPAIGN with "
+                        "them; repeat for each group")
+    p.add_argument("--workers", type=_positive_int, default=1, help="processes for circle fits and Monte Carlo")
+
+    p = sub.add_parser("demo", help="the main job on the bundled campaigns: identify, propagate, predict, report")
+    p.add_argument("--out", default=DEMO_OUT,
+                   help=f"output directory (default {DEMO_OUT}); the demo replaces its index.html on every run")
+    p.add_argument("--force", action="store_true", help="accepted for symmetry: the demo always replaces its report")
+    p.add_argument("--campaigns", default="campaigns", help="directory of the bundled campaigns (default ./campaigns)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
+    p.add_argument("--samples", type=_positive_int, default=500,
+                   help="Monte Carlo samples of the Figure 11 references and the FRF bands (default 500)")
+    p.add_argument("--steps", type=_positive_int, default=2000, help="emcee steps kept per walker (default 2000)")
+    p.add_argument("--workers", type=_positive_int, default=2, help="processes for circle fits and Monte Carlo")
+    p.set_defaults(run=_demo)
+
+    p = command("diagnose", "sim-to-real gap: where the model misses, which effect, how far it shrinks", _diagnose)
+    p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
+    p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
+
+    p = sub.add_parser("validate-diagnosis", help="blind validation of the diagnosis on virtual-rig cases")
+    p.add_argument("--cases", type=_positive_int, default=40, help="number of cases (default 40)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the hidden effects and the rig (default 0)")
+    p.add_argument("--frame", default="frames/two_bolt.toml", help="nominal frame (default frames/two_bolt.toml)")
+    p.add_argument("--out", help="also write summary.json and cases.csv here")
+    p.add_argument("--force", action="store_true", help="replace existing files in --out")
+    p.set_defaults(run=_validate_diagnosis)
     return parser
 
 

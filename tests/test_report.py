@@ -1,0 +1,218 @@
+"""The identification report (workbench report): one self-contained page, honest about what is absent.
+
+Small rig campaigns (one-bolt and two-bolt frames, 0-500 Hz, 4 tests) keep the default suite fast;
+`workbench demo` on the bundled campaigns is in `tests/test_cli.py` (slow).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+
+from workbench.campaign import Factor
+from workbench.cli import main
+from workbench.frame import read_frame
+from workbench.report import SECTION_TITLES, render_report
+from workbench.rig import RigSettings, simulate_campaign, write_with_truth
+from workbench.measured import load_and_extract
+from workbench.workflow import JointSource, Run, predict_campaign
+
+from conftest import REPO
+
+SMALL = RigSettings(f_max_hz=500.0)  # modes 1-5 of the one-bolt frames, 2001 lines
+
+
+class Page(HTMLParser):
+    """The parts of a page the checks need: tags with attributes, headings, tables, banners."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tags: list[tuple[str, dict]] = []
+        self.headings: list[str] = []
+        self.tables: list[list[list[str]]] = []
+        self.banners: list[str] = []
+        self.absent: list[str] = []
+        self._text: list[str] | None = None
+        self._into: str | None = None
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.tags.append((tag, attrs))
+        if tag in ("h2", "h3"):
+            self._text, self._into = [], "heading"
+        elif tag == "div" and "banner" in attrs.get("class", ""):
+            self._text, self._into = [], "banner"
+        elif tag == "p" and attrs.get("class") == "absent":
+            self._text, self._into = [], "absent"
+        elif tag == "table":
+            self.tables.append([])
+        elif tag == "tr":
+            self.tables[-1].append([])
+        elif tag in ("td", "th"):
+            self._text, self._into = [], "cell"
+
+    def handle_endtag(self, tag):
+        if self._text is None:
+            return
+        text = "".join(self._text).strip()
+        if tag in ("h2", "h3") and self._into == "heading":
+            self.headings.append(text)
+        elif tag == "div" and self._into == "banner":
+            self.banners.append(text)
+        elif tag == "p" and self._into == "absent":
+            self.absent.append(text)
+        elif tag in ("td", "th") and self._into == "cell":
+            self.tables[-1][-1].append(text)
+        else:
+            return
+        self._text = self._into = None
+
+    def handle_data(self, data):
+        if self._text is not None:
+            self._text.append(data)
+
+
+def parse(text: str) -> Page:
+    page = Page()
+    page.feed(text)
+    page.close()
+    return page
+
+
+def rig_campaign(directory, frame_name: str, joints: dict[str, str], preloads=("100", "500", "1800", "6000"),
+                 seed: int = 11):
+    """A rig campaign on ``frames/<frame_name>.toml``, one tightening factor per joint, written to ``directory``."""
+    frame = read_frame(REPO / "frames" / f"{frame_name}.toml")
+    factors = tuple(Factor(f"bolt_{j}", "tightening", {p: f"preload {p} N" for p in preloads}, j) for j in joints)
+    design = [{f"bolt_{j}": preloads[(i + k) % len(preloads)] for k, j in enumerate(joints)}
+              for i in range(len(preloads))]
+    campaign, truth = simulate_campaign(frame, factors, design, SMALL, seed=seed)
+    write_with_truth(campaign, truth, directory)
+    return directory
+
+
+@pytest.fixture(scope="module")
+def one_bolt(tmp_path_factory):
+    return rig_campaign(tmp_path_factory.mktemp("c") / "one_bolt", "one_bolt_vertical", {"A": "vertical"})
+
+
+@pytest.fixture(scope="module")
+def report(one_bolt, tmp_path_factory):
+    out = tmp_path_factory.mktemp("r") / "report"
+    status = main(["report", str(one_bolt), "--out", str(out), "--samples", "40", "--steps", "120", "--seed", "3"])
+    return status, out
+
+
+def test_report_is_one_self_contained_page(report):
+    status, out = report
+    assert status == 0
+    assert [p.name for p in out.iterdir()] == ["index.html"]
+    text = (out / "index.html").read_text(encoding="utf-8")
+    page = parse(text)
+    images = [attrs for tag, attrs in page.tags if tag == "img"]
+    assert len(images) >= 7 and all(a["src"].startswith("data:image/png;base64,") for a in images)
+    for tag, attrs in page.tags:
+        for name in ("src", "href"):
+            assert not attrs.get(name, "").startswith(("http", "//")), (tag, attrs.get(name))
+        assert tag not in ("script", "link", "iframe", "object")
+    assert 'src="http' not in text and 'href="http' not in text
+
+
+def test_report_has_every_section_and_the_synthetic_banner(report):
+    _, out = report
+    page = parse((out / "index.html").read_text(encoding="utf-8"))
+    for key in ("design", "frf", "modes", "nominal", "joints", "posterior", "accuracy", "band", "done", "limits"):
+        assert any(SECTION_TITLES[key] in h for h in page.headings), key
+    assert "section 5" not in " ".join(page.headings).lower()  # no --joints-from, no prediction
+    assert page.banners and page.banners[0].startswith("SYNTHETIC - virtual test rig")
+    assert not any(b.startswith("MEASURED") for b in page.banners)
+    assert page.absent == []  # a synthetic one-joint campaign with FRFs: every section is there
+
+
+def test_moments_only_campaign_says_why_the_frf_sections_are_absent(tmp_path):
+    out = tmp_path / "r"
+    campaign = REPO / "campaigns" / "paper_table3_one_bolt_vertical"
+    assert main(["report", str(campaign), "--out", str(out), "--samples", "30"]) == 0
+    page = parse((out / "index.html").read_text(encoding="utf-8"))
+    assert page.banners == ["MEASURED - real test data: paper_table3_one_bolt_vertical."]
+    absent = " ".join(page.absent)
+    assert absent.count("no FRFs") >= 2 and "no measured FRFs" in absent  # FRF overlay, circle fit, band
+    assert "only published moments" in absent  # Bayesian estimator and its posterior
+    assert any(SECTION_TITLES["nominal"] in h for h in page.headings)
+    images = [a for t, a in page.tags if t == "img"]
+    assert len(images) == 2  # the joint models' forest plot and the Figure 11 bars
+
+
+def test_bad_campaign_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(["report", str(tmp_path / "missing"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("workbench report: ") and "missing" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_existing_report_is_kept_without_force(report, capsys):
+    _, out = report
+    before = (out / "index.html").read_bytes()
+    assert main(["report", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--out", str(out)]) == 2
+    assert "exists; pass --force" in capsys.readouterr().err
+    assert (out / "index.html").read_bytes() == before
+
+
+def test_section5_measured_columns_are_the_nan_aware_statistics_of_the_circle_fits(tmp_path):
+    directory = rig_campaign(tmp_path / "two_bolt", "two_bolt", {"A": "vertical", "B": "horizontal"}, seed=12)
+    campaign, extraction = load_and_extract(directory)
+    # one fit marked unusable: the statistics must skip it, not average it in
+    test = extraction.tests[1]
+    weak = [dataclasses.replace(e, flags=("weak",)) if k == 2 else e for k, e in enumerate(extraction.estimates[test])]
+    extraction = dataclasses.replace(extraction, estimates={**extraction.estimates, test: weak})
+    sources = {"vertical": JointSource("vertical", 24e9, 0.07, None, None, "hand"),
+               "horizontal": JointSource("horizontal", 73.5e9, 0.22, None, None, "hand")}
+    prediction = predict_campaign(campaign, extraction, sources, samples=20, seed=1)
+
+    f = np.array([[e.frequency_hz if not {"weak", "poor_circle"} & set(e.flags) else np.nan
+                   for e in extraction.estimates[t]] for t in extraction.tests])
+    assert np.isnan(f[1, 2]) and np.isfinite(f).sum() == f.size - 1
+    c = prediction.comparison
+    np.testing.assert_allclose(c.measured_mean_hz, np.nanmean(f, axis=0), rtol=1e-13)
+    np.testing.assert_allclose(c.measured_std_hz, np.nanstd(f, axis=0, ddof=1), rtol=1e-12)
+
+    run = Run("section 5 check", (), (prediction,), (), 1, 20, 0)
+    page = parse(render_report(run))
+    assert any(SECTION_TITLES["section5"] in h for h in page.headings)
+    table = next(t for t in page.tables if t and t[0][:3] == ["mode", "predicted mean (Hz)", "measured mean (Hz)"])
+    header, rows = table[0], table[1:]
+    mean = [float(r[header.index("measured mean (Hz)")]) for r in rows]
+    std = [float(r[header.index("measured std (Hz)")]) for r in rows]
+    used = [r[header.index("tests used")] for r in rows]
+    np.testing.assert_allclose(mean, np.nanmean(f, axis=0), atol=0.0051)
+    np.testing.assert_allclose(std, np.nanstd(f, axis=0, ddof=1), atol=0.00051)
+    assert used[2] == f"{f.shape[0] - 1}/{f.shape[0]}" and used[0] == f"{f.shape[0]}/{f.shape[0]}"
+
+
+def test_report_with_joints_from_predicts_the_multi_bolt_frame(tmp_path):
+    vertical = rig_campaign(tmp_path / "v", "one_bolt_vertical", {"A": "vertical"}, seed=21)
+    horizontal = rig_campaign(tmp_path / "h", "one_bolt_horizontal", {"B": "horizontal"}, seed=22)
+    two_bolt = rig_campaign(tmp_path / "t", "two_bolt", {"A": "vertical", "B": "horizontal"}, seed=23)
+    out = tmp_path / "r"
+    assert main(["report", str(two_bolt), "--out", str(out), "--samples", "20", "--no-bayes",
+                 "--joints-from", str(vertical), "--joints-from", str(horizontal), "--workers", "2"]) == 0
+    page = parse((out / "index.html").read_text(encoding="utf-8"))
+    assert any(SECTION_TITLES["section5"] in h for h in page.headings)
+    sources = next(t for t in page.tables if t and t[0][0] == "joint group")
+    assert [r[0] for r in sources[1:]] == ["vertical", "horizontal"]
+    assert [r[-1] for r in sources[1:]] == ["v (moments)", "h (moments)"]
+    assert any("skipped on request" in a for a in page.absent)
+
+
+@pytest.mark.parametrize("module", ["workbench.workflow", "workbench.measured"])
+def test_report_numbers_import_neither_pandas_nor_matplotlib(module):
+    code = (f"import sys, {module}; print(','.join(m for m in ('pandas', 'matplotlib') "
+            "if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == ""

@@ -1,0 +1,236 @@
+"""What the tests measured: the circle-fit modes of every test of a campaign, read for the report.
+
+`extract_campaign` is the one place a campaign's FRFs go through the circle fit
+(`workbench.extraction.extract_tests`; `workbench extract`, the report and the demo all call it);
+`load_campaigns` runs it for several campaigns in worker processes. `Extraction` gives the
+per-test frequencies and damping as arrays (NaN where a fit is unusable), the identification's
+`FrequencyData`, and the measured mean damping that the FRF synthesis uses (paper 2.2.2);
+`nyquist_data` and `mode_windows` prepare what the report draws of them. No pandas or matplotlib
+here: campaigns are loaded through `workbench.campaign`, imported where they are loaded.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .circlefit import to_mobility
+from .extraction import ModeEstimate, extract_tests
+from .identify import FrequencyData
+from .modal import modal_superposition
+from .prediction import FRFBand
+
+__all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract", "load_campaigns",
+           "campaign_label", "frequency_axis", "NyquistData", "nyquist_data", "mode_windows"]
+
+# A mode whose combined fit carries one of these flags is left out of that test, as in
+# `workbench.campaign.frequency_data`: the circle is lost in noise or is not a circle.
+UNUSABLE_FLAGS = ("weak", "poor_circle")
+
+
+@dataclass(frozen=True)
+class Extraction:
+    """Circle-fit modes of every test of a campaign (`workbench.extraction.extract_tests`).
+
+    Attributes
+    ----------
+    sets : test id -> the test's measured FRFs (`FRFSet`, sensors in frame order).
+    bands : (n_modes,) pairs (f_lo, f_hi), Hz; band k is mode k + 1 in every test.
+    estimates : test id -> one `ModeEstimate` per band (sensors combined by fit quality).
+    wall_time_s : s, the circle fits only.
+    """
+
+    sets: dict
+    bands: tuple[tuple[float, float], ...]
+    estimates: dict
+    wall_time_s: float = 0.0
+
+    @property
+    def tests(self) -> list:
+        return list(self.estimates)
+
+    @property
+    def modes(self) -> np.ndarray:
+        """(n_modes,) mode numbers, 1 = lowest."""
+        return np.arange(1, len(self.bands) + 1)
+
+    def _table(self, value: Callable[[ModeEstimate], float], usable: bool) -> np.ndarray:
+        return np.array([[value(e) if not (usable and set(UNUSABLE_FLAGS) & set(e.flags)) else np.nan
+                          for e in self.estimates[t]] for t in self.tests], float)
+
+    def frequency_hz(self, usable: bool = True) -> np.ndarray:
+        """(n_tests, n_modes) natural frequencies, Hz; NaN where the fit is unusable (`UNUSABLE_FLAGS`)."""
+        return self._table(lambda e: e.frequency_hz, usable)
+
+    def damping_ratio(self, usable: bool = True) -> np.ndarray:
+        """(n_tests, n_modes) viscous modal damping ratios; NaN where the fit is unusable."""
+        return self._table(lambda e: e.damping_ratio, usable)
+
+    def flag_counts(self) -> np.ndarray:
+        """(n_modes,) number of tests whose estimate of the mode carries any flag."""
+        return np.array([sum(bool(self.estimates[t][k].flags) for t in self.tests) for k in range(len(self.bands))])
+
+    def mean_damping(self) -> np.ndarray:
+        """(n_modes,) mean measured damping ratio of each mode over the tests (the paper's FRF
+        synthesis uses the measured modal damping, 2.2.2); a mode never usable takes all its fits."""
+        usable, every = self.damping_ratio(True), self.damping_ratio(False)
+        found = np.isfinite(usable).any(axis=0)
+        return np.where(found, np.nanmean(np.where(found, usable, 0.0), axis=0), every.mean(axis=0))
+
+    def frequency_data(self, source: str) -> FrequencyData:
+        """The identification's input: every test's usable frequencies (`FrequencyData.from_tests`)."""
+        return FrequencyData.from_tests(tuple(self.tests), self.modes, self.frequency_hz(), source)
+
+
+def extract_campaign(campaign, bands=None, count: int | None = None) -> Extraction:
+    """Circle-fit modes of every test of ``campaign`` (`workbench.campaign.Campaign` with FRFs).
+
+    Parameters
+    ----------
+    campaign : a loaded campaign.
+    bands : (f_lo, f_hi) Hz per mode, or None to find them across every test and sensor.
+    count : keep the ``count`` lowest modes found.
+
+    Raises
+    ------
+    ValueError
+        The campaign has no FRFs.
+    """
+    from .campaign import frf_set
+
+    if campaign.frf is None:
+        raise ValueError(f"{campaign.path or campaign.name}: frf.csv: the campaign has no FRFs to extract modes from")
+    start = time.perf_counter()
+    sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
+    found, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
+                                     {t: s.values for t, s in sets.items()}, campaign.quantity, bands, count)
+    return Extraction(sets, tuple(found), estimates, time.perf_counter() - start)
+
+
+def load_and_extract(path: str | Path):
+    """``(campaign, extraction or None)`` of a campaign directory; None when it has no FRFs."""
+    from .campaign import load_campaign
+
+    campaign = load_campaign(path)
+    return campaign, (extract_campaign(campaign) if campaign.frf is not None else None)
+
+
+def load_campaigns(paths: Sequence[str | Path], workers: int = 1, progress: bool = False) -> dict:
+    """`load_and_extract` of several campaigns, ``workers`` processes at a time (the circle fits
+    of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given."""
+    paths = list(dict.fromkeys(str(p) for p in paths))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(paths), desc="circle fits", unit="campaign", leave=False)
+    done = {}
+    if workers > 1 and len(paths) > 1:
+        with ProcessPoolExecutor(max_workers=min(workers, len(paths))) as pool:
+            futures = {pool.submit(load_and_extract, p): p for p in paths}
+            for future in as_completed(futures):
+                done[futures[future]] = future.result()
+                if bar is not None:
+                    bar.update()
+    else:
+        for p in paths:
+            done[p] = load_and_extract(p)
+            if bar is not None:
+                bar.update()
+    if bar is not None:
+        bar.close()
+    return {p: done[p] for p in paths}
+
+
+@dataclass(frozen=True)
+class NyquistData:
+    """One mode's circle fit on one curve, in mobility (m/s/N), for a Nyquist plot.
+
+    Attributes
+    ----------
+    test, sensor, mode : where it comes from (mode 1 = lowest).
+    measured : (n,) complex measured mobility in the fit's band.
+    fitted : (m,) complex modal circle plus residual terms on a fine axis over the band.
+    frequency_hz, damping_ratio, circle_error : the fit's values; flags : its flags.
+    """
+
+    test: object
+    sensor: str
+    mode: int
+    measured: np.ndarray
+    fitted: np.ndarray
+    frequency_hz: float
+    damping_ratio: float
+    circle_error: float
+    flags: tuple[str, ...]
+
+
+def nyquist_data(extraction: Extraction, test=None) -> list[NyquistData]:
+    """The circle fit of every mode on the best curve (largest combination weight) of one test
+    (default the first): the measured mobility points of the band and the fitted
+    ``i w (A / (w_r^2 - w^2 + 2 i zeta w_r w) + U - L / w^2)`` (Ewins 4.3; `workbench.circlefit`)."""
+    test = extraction.tests[0] if test is None else test
+    frfs = extraction.sets[test]
+    out = []
+    for k, estimate in enumerate(extraction.estimates[test]):
+        c = int(np.argmax(estimate.weights))
+        fit = estimate.fits[c]
+        f = frfs.frequency_hz
+        inside = (f >= fit.band[0]) & (f <= fit.band[1]) & (f > 0)
+        measured = to_mobility(f[inside], frfs.values[c, inside], frfs.quantity)
+        fine = np.linspace(max(fit.band[0], 1e-3), fit.band[1], 400)
+        omega = 2.0 * np.pi * fine
+        modal = modal_superposition(fine, np.array([fit.frequency_hz]), np.array([fit.damping_ratio]),
+                                    np.array([[fit.modal_constant]]), "mobility")[0]
+        fitted = modal + 1j * omega * (fit.residual_upper - fit.residual_lower / omega**2)
+        out.append(NyquistData(test, frfs.responses[c], k + 1, measured, fitted, fit.frequency_hz,
+                               fit.damping_ratio, fit.circle_error, fit.flags))
+    return out
+
+
+def mode_windows(band: FRFBand, measured_hz: np.ndarray, damping_ratio: np.ndarray,
+                 pad: float = 3.0) -> list[tuple[float, float, int]]:
+    """Frequency windows around each measured mode, for zooms on a band (Figures 12, 14, 16 in detail).
+
+    Window k spans the band's 1-99 % frequencies of mode k and every test's measured frequency
+    (NaN skipped), widened by ``pad`` half-power half-widths ``zeta_k f_k`` each side; its sensor
+    is the one where the band's mean ``|H|`` peaks highest inside it.
+
+    Parameters
+    ----------
+    band : the FRF band (its ``natural_hz`` samples).
+    measured_hz : (n_tests, n_modes) measured frequencies, Hz.
+    damping_ratio : (n_modes,) modal damping ratios.
+
+    Returns
+    -------
+    list of ``(f_lo, f_hi, sensor_row)``, one per measured mode, Hz.
+    """
+    n = min(measured_hz.shape[1], band.natural_hz.shape[1])
+    lo, hi = np.percentile(band.natural_hz[:, :n], [1.0, 99.0], axis=0)
+    found = np.isfinite(measured_hz[:, :n])
+    lo = np.where(found.any(axis=0), np.fmin(lo, np.nanmin(np.where(found, measured_hz[:, :n], np.inf), axis=0)), lo)
+    hi = np.where(found.any(axis=0), np.fmax(hi, np.nanmax(np.where(found, measured_hz[:, :n], -np.inf), axis=0)), hi)
+    half = pad * np.asarray(damping_ratio, float)[:n] * 0.5 * (lo + hi)
+    windows = []
+    for k in range(n):
+        inside = (band.frequency_hz >= lo[k] - half[k]) & (band.frequency_hz <= hi[k] + half[k])
+        sensor = int(np.argmax(band.mean[:, inside].max(axis=1))) if inside.any() else 0
+        windows.append((float(lo[k] - half[k]), float(hi[k] + half[k]), sensor))
+    return windows
+
+
+def campaign_label(campaign) -> str:
+    """A campaign's short name: its directory's name, else its ``name``."""
+    return Path(str(campaign.path)).name if campaign.path else str(campaign.name)
+
+
+def frequency_axis(extraction: Extraction) -> np.ndarray:
+    """The campaign's frequency axis without 0 Hz (where an accelerance or mobility is 0: no log)."""
+    f = next(iter(extraction.sets.values())).frequency_hz
+    return f[f > 0]
