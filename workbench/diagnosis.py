@@ -484,14 +484,18 @@ def _energy_shares(base: _Baseline) -> tuple[np.ndarray, np.ndarray]:
 
 
 def localise(base: _Baseline, obs: Observations, predicted_hz: np.ndarray,
-             damping_residual: np.ndarray | None = None) -> list[Region]:
-    """Regions scored by the share of the residual their stiffness, mass or damping explains."""
+             damping_residual: np.ndarray | None = None,
+             shares: tuple[np.ndarray, np.ndarray] | None = None) -> list[Region]:
+    """Regions scored by the share of the residual their stiffness, mass or damping explains.
+
+    ``shares``: `_energy_shares` of the baseline when the caller has them already.
+    """
     frame, model, mesh = base.frame, base.model, base.model.mesh
     residual = (obs.frequency_hz / predicted_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
     shapes = model.expand(base.modes.shapes)[:, base.pairing]
     lam = base.modes.eigenvalues[base.pairing]
-    joint_share, member_share = _energy_shares(base)
+    joint_share, member_share = shares if shares is not None else _energy_shares(base)
     regions = []
     lengths = mesh.element_lengths()
     for i, m in enumerate(frame.members):
@@ -713,14 +717,15 @@ def diagnose(frame: Frame, data: ModalData, progress: Callable[[str], None] | No
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
-    joint_share, _ = _energy_shares(base)
+    shares = _energy_shares(base)
+    joint_share = shares[0]
     fit_base_damping = (lambda mask: _damping_fit(obs, None, mask)) if obs.damping is not None else None
 
     baseline, _ = _evaluate("baseline", None, lambda u: {}, "frequency", None, fit_base_damping, obs, baseline_hz, 0)
     damping_residual = None
     if obs.damping is not None:
         damping_residual = np.nanmean(obs.damping - _damping_fit(obs, None, np.ones(obs.damping.shape[1], bool))[0], axis=0)
-    regions = localise(base, obs, baseline_hz, damping_residual)
+    regions = localise(base, obs, baseline_hz, damping_residual, shares)
 
     say("candidate effects: exact frequencies on parameter grids")
     curves = _frame_curves(base, obs, residual, weight)

@@ -6,7 +6,6 @@ numbers come from `workbench.diagnosis` and `workbench.rig_cases`; this module d
 
 from __future__ import annotations
 
-import base64
 import html
 import time
 from collections.abc import Callable
@@ -18,20 +17,13 @@ import numpy as np
 from .campaign import load_campaign, modal_data
 from .diagnosis import Diagnosis, diagnose, diagnosis_record
 from .outputs import csv_text, json_text, write_outputs
+from .report import CSS, html_figure, html_table
 
 __all__ = ["diagnose_campaign", "diagnosis_html", "validate", "validation_text"]
 
-_CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
-table{border-collapse:collapse;font-size:.9em;margin:.6em 0}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:right}
-th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}.verdict{font-size:1.2em;padding:.6em 1em;
-background:#eef5ff;border-left:4px solid #36c}.synthetic{background:#fff3cd;border:1px solid #e0b000;padding:.4em .8em}
-.real{background:#e7f6e7;border:1px solid #5a5;padding:.4em .8em}img{max-width:100%}figure{margin:1em 0}
-figcaption{font-size:.9em;color:#555}code{background:#f5f5f5;padding:0 .2em}"""
-
-
-def _figures(d: Diagnosis) -> list[tuple[bytes, str]]:
-    from .plots import figure_png, plt
+def _figures(d: Diagnosis) -> list[str]:
+    """The page's figures as embedded HTML: residuals, localisation, ranking."""
+    from .plots import plt
 
     out = []
     modes = np.asarray(d.modes)
@@ -55,9 +47,9 @@ def _figures(d: Diagnosis) -> list[tuple[bytes, str]]:
     ax.set_xticks(modes)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    out.append((figure_png(fig), "Per-mode frequency residual of the nominal model (bars) and of the model with the "
-                "verdict's effect fitted (dots), against twice the standard error of each measured mean."))
-    plt.close(fig)
+    out.append(html_figure(fig, "Per-mode frequency residual of the nominal model (bars) and of the model with the "
+                           "verdict's effect fitted (dots), against twice the standard error of each measured mean.",
+                           "frequency residual per mode"))
 
     top = d.localisation[:12][::-1]
     if top:
@@ -66,9 +58,9 @@ def _figures(d: Diagnosis) -> list[tuple[bytes, str]]:
         ax.set_xlim(0, 1)
         ax.set_xlabel("share of the weighted residual explained by the region alone")
         fig.tight_layout()
-        out.append((figure_png(fig), "Localisation: how much of the residual a change of each region's stiffness, mass "
-                    "or damping explains, from the modes' strain and kinetic energy (first order)."))
-        plt.close(fig)
+        out.append(html_figure(fig, "Localisation: how much of the residual a change of each region's stiffness, "
+                               "mass or damping explains, from the modes' strain and kinetic energy (first order).",
+                               "localisation scores"))
 
     ranked = d.ranking[:12][::-1]
     if ranked:
@@ -81,16 +73,9 @@ def _figures(d: Diagnosis) -> list[tuple[bytes, str]]:
         ax.set_xlabel("held-out RMS error (relative frequency; damping ratio for joint_damping, orange)")
         ax.legend(fontsize=8)
         fig.tight_layout()
-        out.append((figure_png(fig), "Candidates ranked by held-out error (leave one mode out): the lower, the better "
-                    "the effect predicts modes it was not fitted on."))
-        plt.close(fig)
+        out.append(html_figure(fig, "Candidates ranked by held-out error (leave one mode out): the lower, the better "
+                               "the effect predicts modes it was not fitted on.", "held-out error per candidate"))
     return out
-
-
-def _table(header: list[str], rows: list[list[Any]]) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
 
 
 def _fmt(value: Any, spec: str = ".3g") -> str:
@@ -104,32 +89,30 @@ def _fmt(value: Any, spec: str = ".3g") -> str:
 def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> str:
     """A self-contained page: verdict, residuals, localisation, ranking, protocol."""
     v = record["verdict"]
-    banner = ('<p class="synthetic">SYNTHETIC campaign (virtual test rig): not a measurement.</p>' if synthetic
-              else '<p class="real">Real measured data.</p>')
+    banner = ('<p class="banner synthetic">SYNTHETIC campaign (virtual test rig): not a measurement.</p>'
+              if synthetic else '<p class="banner real">Real measured data.</p>')
     meaning = {"none": "the nominal model already fits within measurement scatter",
                "unexplained": "a real gap remains that no effect of the vocabulary brings down to the scatter"}
     verdict = (f"<b>{html.escape(v['effect'])}</b>" + (f" at <b>{html.escape(str(v['where']))}</b>" if v["where"] else "")
                + f": held-out error shrinks by {100 * v['shrinkage']:.0f} %" if v["effect"] not in meaning
                else f"<b>{v['effect']}</b>: {meaning[v['effect']]}")
-    figures = "".join(f'<figure><img alt="{html.escape(cap[:60])}" src="data:image/png;base64,'
-                      f'{base64.b64encode(png).decode()}"><figcaption>{html.escape(cap)}</figcaption></figure>'
-                      for png, cap in _figures(diagnosis))
+    figures = "".join(_figures(diagnosis))
     base = record["baseline"]
-    modes = _table(["mode", "measured (Hz)", "model (Hz)", "model/measured - 1"],
+    modes = html_table(["mode", "measured (Hz)", "model (Hz)", "model/measured - 1"],
                    [[m["mode"], f"{m['measured_hz']:.2f}", f"{m['model_hz']:.2f}", f"{100 * m['rel_error']:+.3f} %"]
                     for m in base["modes"]])
-    loc = _table(["region", "kind", "mechanism", "score"],
-                 [[r["region"], r["kind"], r["mechanism"], f"{r['score']:.2f}"] for r in record["localization"][:12]])
-    rank = _table(["effect", "where", "parameters", "RMS rel. error", "held-out", "held-out chi2", "BIC"],
+    loc = html_table(["region", "kind", "mechanism", "score"],
+                 [[r["region"], r["kind"], r["mechanism"], f"{r['score']:.2f}"] for r in record["localization"][:12]], left=3)
+    rank = html_table(["effect", "where", "parameters", "RMS rel. error", "held-out", "held-out chi2", "BIC"],
                   [[c["effect"], _fmt(c["where"]), ", ".join(f"{k}={_fmt(x)}" for k, x in c["parameters"].items()),
                     _fmt(c["freq_rms_rel_error"]), _fmt(c["heldout_freq_rms_rel_error"]), _fmt(c["heldout_chi2"], ".4g"),
-                    _fmt(c["bic"], ".4g")] for c in record["ranking"][:15]])
+                    _fmt(c["bic"], ".4g")] for c in record["ranking"][:15]], left=3)
     return f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Diagnosis: {html.escape(record['campaign'])}</title>
-<style>{_CSS}</style></head><body>
+<style>{CSS}</style></head><body><main>
 <h1>Sim-to-real gap diagnosis: {html.escape(record['campaign'])}</h1>{banner}
 <p>Source: {html.escape(source)}. Observations: {base['observations']['frequency']} frequency and
 {base['observations']['damping']} damping means. Wall time {record['wall_time_s']:.1f} s.</p>
-<p class="verdict">Verdict: {verdict}</p>
+<p class="note">Verdict: {verdict}</p>
 <h2>Where the model misses</h2>{figures}
 <h2>Baseline: nominal model against the measured means</h2>
 <p>RMS relative frequency error {100 * base['freq_rms_rel_error']:.3f} %, chi-square {base['chi2']:.4g}.</p>{modes}
@@ -141,7 +124,7 @@ fitted on exact eigen-solutions. Verdict rules: <code>none</code> when the nomin
 observation is within the scatter; otherwise the best candidate if its held-out chi-square per observation is
 within the scatter allowance and it shrinks the held-out error meaningfully; else <code>unexplained</code>.
 See <code>workbench/diagnosis.py</code>.</p>
-</body></html>
+</main></body></html>
 """
 
 

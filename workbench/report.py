@@ -25,7 +25,8 @@ from .plots import (band_figure, band_zoom_figure, figure_png, forest_figure, fr
 from .measured import campaign_label, mode_windows, nyquist_data
 from .workflow import Prediction, Run, Study
 
-__all__ = ["render_report", "SECTION_TITLES", "plt", "save_figure", "moment_error_figure", "plot_moment_errors"]
+__all__ = ["render_report", "SECTION_TITLES", "CSS", "html_table", "html_figure", "plt", "save_figure",
+           "moment_error_figure", "plot_moment_errors"]
 
 SECTION_TITLES = {
     "design": "Campaign and design",
@@ -41,7 +42,7 @@ SECTION_TITLES = {
     "limits": "Limits",
 }
 
-_CSS = """
+CSS = """
 body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;color:#1d2329;margin:0;background:#f3f4f6}
 main{max-width:1180px;margin:0 auto;padding:18px 28px 48px;background:#fff}
 h1{font-size:1.55em;margin:.4em 0 .2em}h2{font-size:1.3em;border-bottom:2px solid #1f4e79;padding-bottom:3px;
@@ -81,7 +82,7 @@ def _ci(ci, scale: float = 1.0, fmt: str = ".3g") -> str:
     return "-" if ci is None else f"[{ci[0] / scale:{fmt}}, {ci[1] / scale:{fmt}}]"
 
 
-def _table(header: Sequence[str], rows: Iterable[Sequence[object]], left: int = 1, wrap: bool = False) -> str:
+def html_table(header: Sequence[str], rows: Iterable[Sequence[object]], left: int = 1, wrap: bool = False) -> str:
     """An HTML table; the first ``left`` columns are text (left-aligned), cells escaped; ``wrap``
     lets the last column's text wrap (long level descriptions) instead of scrolling."""
     def cell(tag: str, i: int, n: int, value: object) -> str:
@@ -93,7 +94,8 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[object]], left: int = 
     return f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
 
 
-def _figure(fig, caption: str, alt: str) -> str:
+def html_figure(fig, caption: str, alt: str) -> str:
+    """A matplotlib figure as an embedded PNG with its caption (the figure is closed)."""
     data = base64.b64encode(figure_png(fig)).decode("ascii")
     return (f'<figure><img src="data:image/png;base64,{data}" alt="{_e(alt)}">'
             f"<figcaption>{_e(caption)}</figcaption></figure>")
@@ -123,12 +125,12 @@ def _design(study: Study) -> str:
            f"{_e(', '.join(f'{j.name} [{j.group}]' for j in c.frame.joints))})</dd>"
            f"<dt>FRF quantity</dt><dd>{_e(c.quantity)} (reference: {_e(c.reference)})</dd></dl>"]
     if c.factors:
-        out.append(_table(["factor", "kind", "joint", "levels"],
+        out.append(html_table(["factor", "kind", "joint", "levels"],
                           [(f.name, f.kind, f.joint or "-", "; ".join(f"{k} = {v}" for k, v in f.levels.items()))
                            for f in c.factors], left=4, wrap=True))
     if c.design is not None:  # as the paper's Tables 5-7: one column per test
         design = c.design.astype(str)
-        out.append(_table(["test", *design["test_id"]],
+        out.append(html_table(["test", *design["test_id"]],
                           [(column, *design[column]) for column in design.columns if column != "test_id"], left=1))
     else:
         out.append(_absent("no design table: the campaign publishes moments over tests that are not listed."))
@@ -154,8 +156,8 @@ def _modes_section(study: Study) -> str:
     caption = (f"Circle fit of every mode on test {panels[0].test}, on the sensor with the largest combination "
                "weight: measured mobility (dots) and fitted modal circle with residual terms (line); red titles are "
                "flagged fits.")
-    return (_figure(nyquist_figure(panels), caption, "Nyquist plots of the circle fits") +
-            _table(["mode", "band (Hz)", "mean f (Hz)", "std f (Hz)", "CoV f", "mean damping (%)", "tests used",
+    return (html_figure(nyquist_figure(panels), caption, "Nyquist plots of the circle fits") +
+            html_table(["mode", "band (Hz)", "mean f (Hz)", "std f (Hz)", "CoV f", "mean damping (%)", "tests used",
                     "tests flagged"], rows, left=2) +
             '<p class="note">Sensors are combined per mode by fit quality; a mode whose combined fit is flagged '
             "weak or poor_circle is left out of that test. Flagged tests (any flag, e.g. close_mode) are counted "
@@ -170,7 +172,7 @@ def _nominal_section(study: Study) -> str:
     return (f'<p class="note">Eq. (1): joint moduli minimising the squared differences between the measured mean '
             f"frequencies and the nominal model's (joints at their mean, Nelder-Mead after a log scan): {_e(moduli)}; "
             f"RMS relative error {100 * nom.rms_relative_error:.2f} %.</p>" +
-            _table(["mode", "model mode", "measured mean (Hz)", "model (Hz)", "error (%)"], rows, left=0))
+            html_table(["mode", "model mode", "measured mean (Hz)", "model (Hz)", "error (%)"], rows, left=0))
 
 
 def _forest_rows(study: Study) -> list[dict]:
@@ -191,7 +193,7 @@ def _forest_rows(study: Study) -> list[dict]:
 def _joints_section(study: Study) -> str:
     fit = study.moments
     rows = _forest_rows(study)
-    table = _table(["group / estimator", "E (GPa)", "E 95 % interval", "CoV", "CoV 95 % interval"],
+    table = html_table(["group / estimator", "E (GPa)", "E 95 % interval", "CoV", "CoV 95 % interval"],
                    [(r["label"], f"{r['modulus_gpa']:.4g}", _ci(r["modulus_ci"]), f"{r['cov']:.4g}", _ci(r["cov_ci"]))
                     for r in rows])
     intervals = ("Moment-matching intervals: bootstrap of the tests carried through the linearised eq. (10)-(11) "
@@ -200,11 +202,11 @@ def _joints_section(study: Study) -> str:
                  "open markers")
     bayes = ("Bayesian: posterior median and equal-tailed 95 % interval (full likelihood of every test, emcee)."
              if study.posterior is not None else f"Bayesian estimator {study.bayes_note}.")
-    moments = _table(["mode", "measured mean (Hz)", "model mean (Hz)", "measured CoV", "model CoV"],
+    moments = html_table(["mode", "measured mean (Hz)", "model mean (Hz)", "measured CoV", "model CoV"],
                      [(int(m), f"{a:.2f}", f"{b:.2f}", f"{c:.2e}", f"{d:.2e}")
                       for m, a, b, c, d in zip(fit.modes, fit.measured_mean_hz, fit.mean_hz, fit.measured_delta,
                                                fit.delta)], left=0)
-    return (_figure(forest_figure(rows), "Mean joint modulus and CoV of each joint group, 95 % intervals.",
+    return (html_figure(forest_figure(rows), "Mean joint modulus and CoV of each joint group, 95 % intervals.",
                     "forest plot of the joint models") + table +
             f'<p class="note">{_e(intervals)}. {_e(bayes)} Moment matching: {fit.method} SMR forward model, '
             f"{fit.sweeps} sweep(s), {'converged' if fit.converged else 'NOT converged'}, {fit.evaluations} SMR "
@@ -225,9 +227,9 @@ def _posterior_section(study: Study) -> str:
     for name, v, ci, r, e, t in zip(post.parameter_names, values, cis, post.rhat, post.ess, post.autocorr_time):
         rows.append((name, f"{v:.4g}", f"[{ci[0]:.4g}, {ci[1]:.4g}]", f"{r:.3f}", f"{e:.0f}", f"{t:.1f}"))
     status = "converged" if post.converged else "NOT converged (R-hat >= 1.05 or fewer than 20 autocorrelation times)"
-    return (_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus and CoV "
+    return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus and CoV "
                     "(arviz).", "posterior plots") +
-            _table(["parameter", "median", "95 % interval", "R-hat", "bulk ESS", "autocorr. time (steps)"], rows) +
+            html_table(["parameter", "median", "95 % interval", "R-hat", "bulk ESS", "autocorr. time (steps)"], rows) +
             f'<p class="note">{post.walkers} walkers x {post.steps} steps after {post.burn} burn-in, seed {post.seed}, '
             f"acceptance {post.acceptance_fraction:.2f}, forward table error {post.forward_error:.1e}: {_e(status)}. "
             f"sigma_modeK is mode K's relative model/measurement error.</p>")
@@ -255,10 +257,10 @@ def _accuracy_section(study: Study) -> str:
     which = ("" if adaptive is None or adaptive.refined is None else
              " The adaptive strategy refined modes "
              f"{', '.join(str(k + 1) for k in np.flatnonzero(adaptive.refined)) or 'none'} by SMR2.")
-    return (_figure(fig, f"Relative errors of the frequency moments of the identified model against {against}; "
+    return (html_figure(fig, f"Relative errors of the frequency moments of the identified model against {against}; "
                     f"'mc' is the seeded Monte Carlo ({acc.samples} samples, seed {acc.reference.seed}) and grey its "
                     "3 standard errors; dotted: +-1 %.", "SMR accuracy bars") +
-            _table(header, rows, left=0) +
+            html_table(header, rows, left=0) +
             '<p class="note">As in the paper\'s Figure 11 (Monte Carlo of 10 000 samples) and '
             "benchmarks/smr_accuracy.py: a Monte Carlo of a few hundred samples has standard errors of several % on "
             "the std, larger than the SMR errors, so the errors are read against the noise-free quadrature where it "
@@ -271,10 +273,10 @@ def _band_section(study: Study) -> str:
     band = study.band
     ex = study.extraction
     windows = mode_windows(band, ex.frequency_hz(), ex.mean_damping())
-    return (_figure(band_zoom_figure(band, ex.sets, windows),
+    return (html_figure(band_zoom_figure(band, ex.sets, windows),
                     "The band around each measured mode, at the sensor where it peaks highest (legend as below).",
                     "stochastic FRF band around each mode") +
-            _figure(band_figure(band, ex.sets),
+            html_figure(band_figure(band, ex.sets),
                     f"FRF of the identified model: mean, 5-95 % band and envelope of |H| over {band.samples} joint "
                     f"samples (seed {band.seed}, exact modes tracked by MAC, measured mean damping per mode), over "
                     "the measured FRFs of every test (grey).", "stochastic FRF band") +
@@ -286,7 +288,7 @@ def _study_html(study: Study, number: int) -> str:
     sections = [("design", _design(study))]
     if study.extraction is not None:
         caption = f"Measured |H| ({study.campaign.quantity}) of every test, one panel per sensor."
-        sections.append(("frf", _figure(frf_overlay_figure(study.extraction.sets), caption, "measured FRFs")))
+        sections.append(("frf", html_figure(frf_overlay_figure(study.extraction.sets), caption, "measured FRFs")))
     else:
         sections.append(("frf", _absent(study.extraction_note)))
     sections += [("modes", _modes_section(study)), ("nominal", _nominal_section(study)),
@@ -315,7 +317,7 @@ def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
                                                   c.predicted_std_hz, c.measured_std_hz, c.std_ratio, used)]
     named = {j.group for j in pred.campaign.frame.joints} | set(pred.campaign.frame.joint_names)
     kept = [j.name for j in pred.campaign.frame.joints if j.group not in pred.sources and j.name not in pred.sources]
-    sources = _table(["joint group", "joints", "E (GPa)", "E 95 %", "CoV", "CoV 95 %", "identified on"],
+    sources = html_table(["joint group", "joints", "E (GPa)", "E 95 %", "CoV", "CoV 95 %", "identified on"],
                      [(g, ", ".join(j.name for j in pred.frame.joints if j.group == g or j.name == g),
                        f"{s.youngs_modulus_pa / 1e9:.4g}", _ci(s.youngs_modulus_ci95, 1e9), f"{s.cov:.4g}",
                        _ci(s.cov_ci95), f"{s.campaign} ({s.method})") for g, s in pred.sources.items() if g in named],
@@ -324,16 +326,16 @@ def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
     return (f'<h3 id="{_anchor("section5", pred.name)}">{number}.{sub} {_e(pred.name)} {_badge(pred.campaign)}</h3>'
             f"<p>{_e(pred.campaign.name)}: {len(pred.extraction.tests)} tests. Joint models applied:{_e(kept_note)}</p>"
             + sources +
-            _figure(fig, f"Left: predicted FRF band ({pred.band.samples} samples, seed {pred.band.seed}) over the "
+            html_figure(fig, f"Left: predicted FRF band ({pred.band.samples} samples, seed {pred.band.seed}) over the "
                     f"measured FRFs at sensor {pred.band.sensors[0]}. Right: per mode, the predicted spread (5-95 % "
                     "of the band's Monte Carlo frequencies, and the adaptive SMR mean +- std) against the measured "
                     "frequencies of every test, all in % of the predicted mean.", f"section 5 prediction {pred.name}") +
-            _table(["mode", "predicted mean (Hz)", "measured mean (Hz)", "mean error (%)", "predicted std (Hz)",
+            html_table(["mode", "predicted mean (Hz)", "measured mean (Hz)", "mean error (%)", "predicted std (Hz)",
                     "measured std (Hz)", "std ratio", "tests used"], rows, left=0) +
             '<p class="note">Predicted: adaptive SMR moments of the frame with the one-bolt joint models. Measured: '
             "mean and standard deviation (ddof 1, NaN-aware) of the circle-fit frequencies over the tests. "
             "std ratio = predicted / measured.</p>" +
-            _figure(band_zoom_figure(pred.band, pred.extraction.sets,
+            html_figure(band_zoom_figure(pred.band, pred.extraction.sets,
                                      mode_windows(pred.band, measured, pred.extraction.mean_damping())),
                     "The predicted band around each measured mode, at the sensor where it peaks highest.",
                     f"predicted band around each mode, {pred.name}"))
@@ -348,7 +350,7 @@ def _steps_table(run: Run) -> str:
     for item in (*run.studies, *run.predictions):
         rows += [(item.name, s.name, s.detail, "-" if s.seed is None else s.seed, f"{s.wall_time_s:.2f}")
                  for s in item.steps]
-    return _table(["campaign", "step", "detail", "seed", "wall time (s)"], rows, left=3)
+    return html_table(["campaign", "step", "detail", "seed", "wall time (s)"], rows, left=3)
 
 
 def _limits(run: Run) -> str:
@@ -429,7 +431,7 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
             parts.append(f'<h2 id="limits">{n}. {_e(SECTION_TITLES["limits"])}</h2>' + _limits(run))
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"><title>{_e(run.title)}</title>"
-            f"<style>{_CSS}</style></head><body><main><h1>{_e(run.title)}</h1>{banner}"
+            f"<style>{CSS}</style></head><body><main><h1>{_e(run.title)}</h1>{banner}"
             "<p>Bolted-joint variability after Ghienne, Laurent &amp; Blanz&eacute;, MSSP 136 (2020) 106510: "
             "circle-fit extraction, joint identification (eq. 1, 10-11; Bayesian), propagation (SMR, eq. 5-7) and "
             f"stochastic FRFs.</p><nav>{'<br>'.join(toc)}</nav>{''.join(parts)}</main></body></html>\n")

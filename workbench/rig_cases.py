@@ -34,7 +34,7 @@ from .rig import JointLaw, RigSettings, simulate_campaign
 __all__ = ["CASE_SETTINGS", "draw_effect", "case_campaign", "CaseResult", "run_case", "summarise"]
 
 CASE_SETTINGS = RigSettings(law_shape={"s0": 0.0, "eta0": 0.0}, zeta_base=(0.004,), snr_db=40.0)
-CASE_TYPES = tuple(t for t in EFFECTS)  # none, the eight of the vocabulary, outside_vocabulary
+CASE_TYPES = EFFECTS  # none, the eight of the vocabulary, outside_vocabulary
 FULL_PRELOAD = "3"
 
 
