@@ -1,9 +1,9 @@
-"""Bayesian identification (workbench.bayes) on two campaigns, posterior beside the truth.
+"""Bayesian identification (workbench.identify.bayes) on two campaigns, posterior beside the truth.
 
 (a) a synthetic 40-test one-bolt campaign drawn from the Gamma joint model (E = 24 GPa, CoV 0.09,
     exact frequencies + 0.05 % relative noise), started 3 times off (72 GPa);
 (b) the bundled ``campaigns/two_bolt_table5`` (the virtual rig, Table 5 design), frequencies
-    extracted from its FRFs by circle fit (`workbench.extraction.extract_tests`), started from the
+    extracted from its FRFs by circle fit (`workbench.extraction.modes.extract_tests`), started from the
     frame file's moduli. Its truth, read from the truth JSON beside the campaign only here, is the
     sample mean and CoV of the rig's per-test joint moduli (the rig's preload law is not a Gamma law).
 
@@ -30,15 +30,15 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.bayes import bayes_identify, save_posterior  # noqa: E402
-from workbench.campaign import frf_set, load_campaign  # noqa: E402
-from workbench.extraction import extract_tests  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.identify import FrequencyData  # noqa: E402
-from workbench.modal import model_modes  # noqa: E402
-from workbench.rig import truth_path  # noqa: E402
-from workbench.stochastic import track_modes  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.identify.bayes import bayes_identify, save_posterior  # noqa: E402
+from workbench.io.campaign import frf_set, load_campaign  # noqa: E402
+from workbench.extraction.modes import extract_tests  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.identify.moments import FrequencyData  # noqa: E402
+from workbench.model.modal import model_modes  # noqa: E402
+from workbench.rig.simulate import truth_path  # noqa: E402
+from workbench.uq.stochastic import track_modes  # noqa: E402
 
 
 def gamma_campaign(n_tests: int, mean_pa: float, cov: float, noise: float, seed: int):

@@ -5,8 +5,8 @@ Run from the repository root: ``python benchmarks/circlefit_snr.py [--seeds 20]`
 Mode set (accelerance, 0-1250 Hz at 0.25 Hz, one curve): 100 Hz at 3 % damping, 250 Hz at 1 %,
 600 Hz at 0.1 %. The receptance modal constants are A_r = 100 zeta_r (1/kg): (3.0, 1.0, 0.1), so that
 the three accelerance peaks ``|H| ~ A_r / (2 zeta_r)`` are equal (50 (m/s2)/N each): no mode is
-favoured by the noise, which `workbench.modal.add_noise` scales to the RMS of |H| over the whole
-curve. For each SNR (20 to 60 dB) and seed, `workbench.extraction.error_vs_snr` adds circular
+favoured by the noise, which `workbench.model.modal.add_noise` scales to the RMS of |H| over the whole
+curve. For each SNR (20 to 60 dB) and seed, `workbench.extraction.modes.error_vs_snr` adds circular
 Gaussian noise and fits each mode in ``f_r +- 6 zeta_r f_r``; the errors are ``|estimate / truth - 1|``,
 median and 90th percentile over the seeds.
 
@@ -26,8 +26,8 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from workbench.extraction import error_vs_snr  # noqa: E402
-from workbench.report import plt, save_figure  # noqa: E402  (Agg backend)
+from workbench.extraction.modes import error_vs_snr  # noqa: E402
+from workbench.report.page import plt, save_figure  # noqa: E402  (Agg backend)
 
 REPO = Path(__file__).resolve().parents[1]
 FIGURE = REPO / "reports" / "circlefit_error_vs_snr.png"

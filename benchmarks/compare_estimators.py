@@ -22,9 +22,9 @@ on each; over the campaigns, for each design (9 tests, 40 tests) and estimator:
 Synthetic model (the truth)
 ---------------------------
 * Joint modulus of each test ``Y_t = 24 GPa * gamma_t`` with ``gamma_t ~ Gamma(1 / c^2, c^2)``,
-  ``c = 0.09`` (paper eq. 8-9; `workbench.stochastic.JointModel.sample`), independent over tests.
+  ``c = 0.09`` (paper eq. 8-9; `workbench.uq.stochastic.JointModel.sample`), independent over tests.
 * Each test's first 10 eigenfrequencies are exact eigen-solutions at ``Y_t``, tracked against the
-  nominal modes by MAC (`workbench.stochastic.tracked_frequencies`, worst MAC about 0.99).
+  nominal modes by MAC (`workbench.uq.stochastic.tracked_frequencies`, worst MAC about 0.99).
 * Measurement noise: relative Gaussian, ``f_obs = f (1 + 2e-4 eps)``, ``eps ~ N(0, 1)`` independent
   over tests and modes. 2e-4 is about what the circle fit achieves at 40 dB SNR on these modes
   (``benchmarks/circlefit_snr.py``: 90th percentile below 1e-4 on well-separated ideal modes; the
@@ -44,11 +44,11 @@ Estimators, started away from the truth
 Both get a model whose joint modulus in the frame is 2x off (``dataclasses.replace`` of the joint):
 48 GPa for even campaigns, 12 GPa for odd ones; that file value is each estimator's only start.
 
-* Moment matching (`workbench.identify.moment_matching`, the paper's two steps made
+* Moment matching (`workbench.identify.moments.moment_matching`, the paper's two steps made
   self-consistent, adaptive SMR forward model): its eq. (1) nominal fit starts at the file
   modulus (after its coarse log scan), its first step 1 holds the CoV at the default 0.05.
   Intervals: bootstrap of the tests + delta method (None when an estimate sits on a bound).
-* Bayesian (`workbench.bayes.bayes_identify`, full likelihood with the latent moduli integrated
+* Bayesian (`workbench.identify.bayes.bayes_identify`, full likelihood with the latent moduli integrated
   out, emcee): the preliminary reference fit starts at the file modulus; default sampler settings
   (48 walkers, the library's burn-in and kept steps unless ``--burn``/``--steps``). Point estimates are posterior
   medians, intervals equal-tailed 95 %.
@@ -69,7 +69,7 @@ frequency data's exact posterior is at most marginally wider than this one: a sa
 markedly narrower than it is under-dispersed, whatever its R-hat says. The summary gives the ideal
 posterior's coverage and each estimator's median ratio of 95 % interval log-widths to it.
 (Seen here with emcee 3.1.6: its ``DESnookerMove`` accepts with half the Jacobian exponent, fixed
-upstream in dfm/emcee#531 but not released, and contracts the ensemble; `workbench.bayes` mixes it
+upstream in dfm/emcee#531 but not released, and contracts the ensemble; `workbench.identify.bayes` mixes it
 in at 20 %, which gives Bayesian intervals about 0.85 of the ideal width. DEMove alone gives 1.00.)
 
 Targets (issue), on the 40-test campaigns: moment matching |bias| of E < 2 %; moment matching
@@ -113,15 +113,15 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.bayes import bayes_identify  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.identify.bayes import bayes_identify  # noqa: E402
 
 _BAYES_DEFAULTS = inspect.signature(bayes_identify).parameters
 STEPS, BURN = _BAYES_DEFAULTS["steps"].default, _BAYES_DEFAULTS["burn"].default  # the library's own
-from workbench.frame import read_frame  # noqa: E402
-from workbench.identify import FrequencyData, moment_matching  # noqa: E402
-from workbench.modal import model_modes  # noqa: E402
-from workbench.stochastic import JointModel, tracked_frequencies  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.identify.moments import FrequencyData, moment_matching  # noqa: E402
+from workbench.model.modal import model_modes  # noqa: E402
+from workbench.uq.stochastic import JointModel, tracked_frequencies  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 FRAME = REPO / "frames" / "one_bolt_vertical.toml"
@@ -199,7 +199,7 @@ def synthetic_campaign(n_tests: int, seed: int, noise: float = NOISE, frame_path
 def reference_posterior(moduli_pa: np.ndarray, points: tuple[int, int] = (601, 800)):
     """Exact posterior of (E, c) if the tests' moduli were measured perfectly: the ideal Bayesian.
 
-    The same Gamma model and priors as `workbench.bayes` (E log-uniform, c uniform), on a grid
+    The same Gamma model and priors as `workbench.identify.bayes` (E log-uniform, c uniform), on a grid
     (``log E`` within +-0.3 of the log sample mean, c on [0.005, 0.4]); the frequency noise is left
     out (it pins each test's modulus to about 0.2 %, against the joint's 9 % scatter), so this
     posterior is at most marginally narrower than the exact one of the frequency data.
@@ -234,7 +234,7 @@ def run_campaign(n_tests: int, campaign: int, base_seed: int = 1000, steps: int 
     Returns (rows, posterior_or_None): one row (dict over `RUN_FIELDS`) per estimator, and the
     Bayesian run's InferenceData posterior group (E and CoV only) when ``keep_posterior``.
     """
-    logging.getLogger("workbench.bayes").setLevel(logging.ERROR)  # non-convergence is in the rows
+    logging.getLogger("workbench.identify.bayes").setLevel(logging.ERROR)  # non-convergence is in the rows
     seed = base_seed + campaign
     data, moduli = synthetic_campaign(n_tests, seed, frame_path=frame_path)
     factor = START_FACTORS[campaign % len(START_FACTORS)]
@@ -415,7 +415,7 @@ def write_csv(path: Path, rows: list[dict], fields: list[str]) -> None:
 
 
 def comparison_figure(rows: list[dict]):
-    from workbench.report import plt
+    from workbench.report.page import plt
 
     designs = sorted({r["design"] for r in rows})
     colours = {"moment_matching": "tab:blue", "bayes": "tab:orange"}
@@ -487,7 +487,7 @@ def comparison_figure(rows: list[dict]):
 def forest_figure(posteriors: dict):
     """``arviz.plot_forest`` of the first campaigns' posteriors of E and CoV, one column per design."""
     az = _arviz()
-    from workbench.report import plt
+    from workbench.report.page import plt
 
     designs = sorted(posteriors)
     fig, axes = plt.subplots(2, len(designs), figsize=(6 * len(designs), 8), squeeze=False)
@@ -549,7 +549,7 @@ def main(argv=None) -> int:
     write_csv(RUNS_CSV, rows, RUN_FIELDS)
     write_csv(SUMMARY_CSV, summary, list(summary[0]))
 
-    from workbench.report import save_figure
+    from workbench.report.page import save_figure
 
     save_figure(comparison_figure(rows), FIGURE)
     if any(posteriors.values()):

@@ -19,11 +19,11 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.modal import model_modes, solve_modes  # noqa: E402
-from workbench.prediction import TRACKING_MODES, frf_band  # noqa: E402
-from workbench.stochastic import joint_model  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.modal import model_modes, solve_modes  # noqa: E402
+from workbench.uq.prediction import TRACKING_MODES, frf_band  # noqa: E402
+from workbench.uq.stochastic import joint_model  # noqa: E402
 from timing import best_of  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]

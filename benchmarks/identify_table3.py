@@ -23,11 +23,11 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import minimize_scalar  # noqa: E402
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.identify import FrequencyData, joint_groups, model_at_moduli, moment_matching  # noqa: E402
-from workbench.smr import adaptive  # noqa: E402
-from workbench.stochastic import JointModel  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.identify.moments import FrequencyData, joint_groups, model_at_moduli, moment_matching  # noqa: E402
+from workbench.uq.smr import adaptive  # noqa: E402
+from workbench.uq.stochastic import JointModel  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 TABLE3 = REPO.parent / "shared" / "paper" / "table3_single_bolt_vertical_moments.csv"

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.assembly import assemble
-from workbench.frame import read_frame
-from workbench.generate import multibay_for_dofs
-from workbench.modal import DENSE_LIMIT, model_modes
+from workbench.model.assembly import assemble
+from workbench.model.frame import read_frame
+from workbench.model.generate import multibay_for_dofs
+from workbench.model.modal import DENSE_LIMIT, model_modes
 from timing import best_of
 
 REPO = Path(__file__).resolve().parents[1]

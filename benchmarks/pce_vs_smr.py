@@ -6,9 +6,9 @@ For the first 10 eigenfrequencies of ``frames/four_bolt.toml`` (4 random joints,
 CoV 0.09, 0.22, 0.22, 0.09), in one run:
 
 * the reference moments: a tensor Gauss rule over exact eigen-solves
-  (`workbench.stochastic.quadrature_reference`, 7 points per joint, 2401 solves), and an estimate
+  (`workbench.uq.stochastic.quadrature_reference`, 7 points per joint, 2401 solves), and an estimate
   of its own error against a 9-point rule;
-* SMR1, SMR2 and the adaptive strategy (`workbench.smr`): wall time (best of ``--repeat``), and
+* SMR1, SMR2 and the adaptive strategy (`workbench.uq.smr`): wall time (best of ``--repeat``), and
   the largest relative error over the 10 modes of the mean and of the standard deviation;
 * the tool a user would pick instead, a non-intrusive polynomial chaos expansion (PCE) built with
   chaospy on the same input law, ``chaospy.J(*[chaospy.Gamma(shape_j, scale_j)])`` (chaospy's
@@ -23,7 +23,7 @@ CoV 0.09, 0.22, 0.22, 0.09), in one run:
     (``(p + 1)^4`` points), and, as an extra, on a Smolyak sparse grid of Gauss rules of level p;
 
   moments by ``chaospy.E`` and ``chaospy.Std`` of the expansion. Each model evaluation is one exact
-  eigen-solve with MAC tracking against the nominal modes (`workbench.stochastic.tracked_frequencies`),
+  eigen-solve with MAC tracking against the nominal modes (`workbench.uq.stochastic.tracked_frequencies`),
   the same "model solve" the reference uses. Wall time includes everything a user would run:
   building the expansion and the points, the nominal solve used for tracking, the solves, the fit
   and the moments.
@@ -93,11 +93,11 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.modal import model_modes  # noqa: E402
-from workbench.smr import adaptive, smr1, smr2  # noqa: E402
-from workbench.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference, tracked_frequencies  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.modal import model_modes  # noqa: E402
+from workbench.uq.smr import adaptive, smr1, smr2  # noqa: E402
+from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference, tracked_frequencies  # noqa: E402
 from timing import best_of  # noqa: E402
 
 try:

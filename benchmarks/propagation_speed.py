@@ -23,11 +23,11 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.generate import multibay_for_dofs  # noqa: E402
-from workbench.smr import adaptive, sensitivities, smr1, smr2  # noqa: E402
-from workbench.stochastic import joint_model, monte_carlo  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.generate import multibay_for_dofs  # noqa: E402
+from workbench.uq.smr import adaptive, sensitivities, smr1, smr2  # noqa: E402
+from workbench.uq.stochastic import joint_model, monte_carlo  # noqa: E402
 from timing import best_of  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]

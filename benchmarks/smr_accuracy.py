@@ -28,12 +28,12 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.generate import multibay_frame  # noqa: E402
-from workbench.report import moment_error_figure, save_figure  # noqa: E402
-from workbench.smr import DISPERSION_THRESHOLD, PROXIMITY_THRESHOLD, adaptive, pert2, smr1, smr2  # noqa: E402
-from workbench.stochastic import JointModel, joint_model, quadrature_reference  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.generate import multibay_frame  # noqa: E402
+from workbench.report.page import moment_error_figure, save_figure  # noqa: E402
+from workbench.uq.smr import DISPERSION_THRESHOLD, PROXIMITY_THRESHOLD, adaptive, pert2, smr1, smr2  # noqa: E402
+from workbench.uq.stochastic import JointModel, joint_model, quadrature_reference  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = REPO / "tests" / "reference" / "propagation_one_bolt.json"

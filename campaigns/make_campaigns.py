@@ -4,7 +4,7 @@
     python campaigns/make_campaigns.py --force    # replaces them
 
 One real campaign (the paper's Table 3 moments, synthetic = false) and five synthetic ones from the
-workbench's virtual test rig (`workbench.rig`), each with its README.md and, for the synthetic
+workbench's virtual test rig (`workbench.rig.simulate`), each with its README.md and, for the synthetic
 ones, ``<name>.truth.json`` beside the directory. FRFs in parquet, float32.
 """
 
@@ -24,11 +24,11 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from workbench.campaign import Campaign, Factor, load_campaign, write_campaign  # noqa: E402
-from workbench.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
-from workbench.frame import read_frame  # noqa: E402
-from workbench.outputs import write_outputs  # noqa: E402
-from workbench.rig import LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth  # noqa: E402
+from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign  # noqa: E402
+from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
+from workbench.model.frame import read_frame  # noqa: E402
+from workbench.io.outputs import write_outputs  # noqa: E402
+from workbench.rig.simulate import LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 FRAMES = HERE.parent / "frames"
@@ -99,7 +99,7 @@ def synthetic_readme(name: str, frame_file: str, seed: int, title: str, factors,
         "",
         "Made by `python campaigns/make_campaigns.py` (regenerates every bundled campaign identically).",
         "Tightening levels map to preloads 1 -> 50 N, 2 -> 1800 N, 3 -> 6000 N"
-        + (" ; the sweep's levels are named by their preload in N (`workbench.designs.sweep_preloads()`)."
+        + (" ; the sweep's levels are named by their preload in N (`workbench.rig.designs.sweep_preloads()`)."
            if "sweep" in name else "."),
         "Amplitude: low -> ratio 1, high -> ratio 5." if any(x.kind == "amplitude" for x in factors) else "",
     ]
@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         campaign, truth = simulate_campaign(
             frame, factors, design, settings, seed, name=f"{name}: {title} (synthetic)",
             description=f"Synthetic campaign of the workbench's virtual test rig: {title}. Seed {seed}.",
-            source=f"synthetic: workbench.rig (campaigns/make_campaigns.py, seed {seed}); design from {PAPER_REF}")
+            source=f"synthetic: workbench.rig.simulate (campaigns/make_campaigns.py, seed {seed}); design from {PAPER_REF}")
         directory = HERE / name
         write_with_truth(campaign, truth, directory, force=args.force)
         shutil.copyfile(FRAMES / f"{frame_file}.toml", directory / "frame.toml")  # verbatim nominal frame

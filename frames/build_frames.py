@@ -37,8 +37,8 @@ REPO = HERE.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from workbench.assembly import assemble  # noqa: E402
-from workbench.frame import (  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame import (  # noqa: E402
     DofRef,
     Frame,
     GroundSpring,
@@ -51,7 +51,7 @@ from workbench.frame import (  # noqa: E402
     Support,
     write_frame,
 )
-from workbench.modal import model_modes  # noqa: E402
+from workbench.model.modal import model_modes  # noqa: E402
 
 PAPER = REPO / ".." / "shared" / "paper"
 CONFIGURATIONS = ("monolithic", "one_bolt_vertical", "one_bolt_horizontal", "two_bolt", "four_bolt")

@@ -17,9 +17,9 @@ import numpy as np
 from build_frames import (CONFIGURATIONS, HERE, TABLE2_JOINT_MODULUS, frequencies, read_table2, rms_max_error,
                           with_joint_modulus)
 
-from workbench.assembly import assemble
-from workbench.frame import read_frame
-from workbench.modal import model_modes
+from workbench.model.assembly import assemble
+from workbench.model.frame import read_frame
+from workbench.model.modal import model_modes
 
 
 def main() -> int:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.frame import Frame, parse_frame
+from workbench.model.frame import Frame, parse_frame
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"

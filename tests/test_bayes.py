@@ -1,4 +1,4 @@
-"""Bayesian identification (workbench.bayes): sampler plumbing, likelihood integration, recovery."""
+"""Bayesian identification (workbench.identify.bayes): sampler plumbing, likelihood integration, recovery."""
 
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ from scipy import stats
 from scipy.integrate import quad
 from scipy.special import gammaln
 
-from workbench.assembly import assemble
-from workbench.bayes import (LikelihoodModel, bayes_identify, likelihood_model, run_ensemble, save_posterior)
-from workbench.surrogate import forward_table
-from workbench.frame import read_frame
-from workbench.identify import FrequencyData
-from workbench.modal import model_modes
-from workbench.stochastic import track_modes
+from workbench.model.assembly import assemble
+from workbench.identify.bayes import (LikelihoodModel, bayes_identify, likelihood_model, run_ensemble, save_posterior)
+from workbench.identify.surrogate import forward_table
+from workbench.model.frame import read_frame
+from workbench.identify.moments import FrequencyData
+from workbench.model.modal import model_modes
+from workbench.uq.stochastic import track_modes
 
 from conftest import REPO
 
@@ -67,7 +67,7 @@ def test_moments_only_campaign_is_refused():
 
 
 def test_import_pulls_in_neither_pandas_nor_emcee():
-    code = ("import sys, workbench.bayes; print(','.join(m for m in ('pandas', 'matplotlib', 'emcee', 'arviz') "
+    code = ("import sys, workbench.identify.bayes; print(','.join(m for m in ('pandas', 'matplotlib', 'emcee', 'arviz') "
             "if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == ""

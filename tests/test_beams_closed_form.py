@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from workbench.assembly import assemble
-from workbench.modal import model_modes
+from workbench.model.assembly import assemble
+from workbench.model.modal import model_modes
 
 from conftest import ALUMINIUM, CLAMP, bar_section, straight_beam
 

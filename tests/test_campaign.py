@@ -13,8 +13,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from workbench.campaign import Campaign, CampaignError, Factor, load_campaign, frf_set, write_campaign
-from workbench.generate import multibay_frame
+from workbench.io.campaign import Campaign, CampaignError, Factor, load_campaign, frf_set, write_campaign
+from workbench.model.generate import multibay_frame
 
 from conftest import SHARED
 
@@ -184,9 +184,9 @@ def test_random_valid_campaigns_round_trip_unchanged(tmp_path_factory, levels, t
 
 
 def test_frequency_data_from_modes_moments_or_frfs(tmp_path):
-    from workbench.campaign import frequency_data
-    from workbench.frame import read_frame
-    from workbench.rig import RigSettings, simulate_campaign
+    from workbench.workflow.measured import frequency_data
+    from workbench.model.frame import read_frame
+    from workbench.rig.simulate import RigSettings, simulate_campaign
 
     from conftest import REPO
 

@@ -1,4 +1,4 @@
-"""Importers of the real data sets (workbench.campaign_import) and their frame files.
+"""Importers of the real data sets (workbench.io.real_data) and their frame files.
 
 The data are not in the repository (their licences forbid redistribution): the tests that read
 them skip when ``../shared/data/real`` is absent. The reference numbers below were measured on
@@ -13,11 +13,11 @@ import pytest
 from scipy.stats import spearmanr
 
 from conftest import REPO, SHARED
-from workbench.assembly import assemble
-from workbench.campaign import load_campaign, write_campaign
-from workbench.campaign_import import import_brake_reuss, import_unesp_bert, main
-from workbench.frame import read_frame
-from workbench.modal import model_modes
+from workbench.model.assembly import assemble
+from workbench.io.campaign import load_campaign, write_campaign
+from workbench.io.real_data import import_brake_reuss, import_unesp_bert, main
+from workbench.model.frame import read_frame
+from workbench.model.modal import model_modes
 
 REAL = SHARED / "data" / "real"
 UNESP = REAL / "unesp-bert-bolted-beam"

@@ -1,7 +1,7 @@
-"""Circle-fit modal extraction (workbench.circlefit): synthetic-truth round trips with named
+"""Circle-fit modal extraction (workbench.extraction.circlefit): synthetic-truth round trips with named
 tolerances, invariants, the damping formula against its closed form, flags, and bad input.
 
-Truth: FRFs synthesised by modal superposition (`workbench.modal.modal_frf`, and the frame
+Truth: FRFs synthesised by modal superposition (`workbench.model.modal.modal_frf`, and the frame
 ``frames/one_bolt_vertical.toml``) with known frequencies, damping ratios and modal constants;
 noise is circular complex Gaussian at an SNR of ``20 log10(RMS_f |H| / sigma)`` over the whole
 0-1250 Hz range, per curve, seeded by ``numpy.random.default_rng(seed)``.
@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench import circlefit as cf
-from workbench import extraction as ex
-from workbench.modal import Modes, add_noise, modal_frf, modal_superposition
+from workbench.extraction import circlefit as cf
+from workbench.extraction import modes as ex
+from workbench.model.modal import Modes, add_noise, modal_frf, modal_superposition
 
 # tolerances, named (relative)
 NOISE_FREE_FREQUENCY = 1e-6
@@ -71,9 +71,9 @@ def test_noise_free_round_trip(quantity):
 
 def test_noise_free_frame_modal_constants():
     """A real frame: the modal constants are phi_j phi_k of the mass-normalised model."""
-    from workbench.assembly import assemble
-    from workbench.frame import read_frame
-    from workbench.modal import frame_frf, model_modes
+    from workbench.model.assembly import assemble
+    from workbench.model.frame import read_frame
+    from workbench.model.modal import frame_frf, model_modes
     model = assemble(read_frame(Path(__file__).resolve().parents[1] / "frames" / "one_bolt_vertical.toml"))
     modes = model_modes(model, 8)
     zeta = np.full(modes.count, 0.005)
@@ -289,7 +289,7 @@ def test_bad_input_to_band_finder_and_combine():
 
 
 def test_module_imports_neither_pandas_nor_matplotlib():
-    code = ("import sys, workbench.circlefit; "
+    code = ("import sys, workbench.extraction.circlefit; "
             "print(','.join(m for m in ('pandas', 'matplotlib') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "" and done.stderr == ""

@@ -1,4 +1,4 @@
-"""Circle-fit extraction on the two real data sets (workbench.extraction on workbench.campaign_import).
+"""Circle-fit extraction on the two real data sets (workbench.extraction.modes on workbench.io.real_data).
 
 The data are not in the repository: these tests skip when ``../shared/data/real`` is absent. They
 check what the data's authors report and what a modal extraction must at least get right:
@@ -22,9 +22,9 @@ import pytest
 from scipy.stats import spearmanr
 
 from conftest import SHARED
-from workbench.campaign import frf_set
-from workbench.campaign_import import import_brake_reuss, import_unesp_bert
-from workbench.extraction import extract_tests, find_mode_bands
+from workbench.io.campaign import frf_set
+from workbench.io.real_data import import_brake_reuss, import_unesp_bert
+from workbench.extraction.modes import extract_tests, find_mode_bands
 
 REAL = SHARED / "data" / "real"
 UNESP = REAL / "unesp-bert-bolted-beam"

@@ -9,11 +9,11 @@ import sys
 import numpy as np
 import pytest
 
-from workbench.assembly import assemble
+from workbench.model.assembly import assemble
 from workbench.cli import main
-from workbench.frame import write_frame
-from workbench.generate import multibay_frame
-from workbench.modal import model_modes
+from workbench.model.frame import write_frame
+from workbench.model.generate import multibay_frame
+from workbench.model.modal import model_modes
 
 
 @pytest.fixture
@@ -79,8 +79,8 @@ def test_console_entry_point_runs_as_a_module(frame_file, tmp_path):
 def test_propagate_writes_moments_and_run_record(tmp_path):
     import json
 
-    from workbench.smr import adaptive
-    from workbench.stochastic import joint_model
+    from workbench.uq.smr import adaptive
+    from workbench.uq.stochastic import joint_model
 
     frame = multibay_frame(1, 1, element_length=0.05)
     path = tmp_path / "frame.toml"
@@ -123,9 +123,9 @@ def test_extract_finds_the_modes_the_rig_put_in(tmp_path):
     """Rig campaign -> workbench extract -> modes.csv against the rig's truth."""
     import json
 
-    from workbench.campaign import Factor
-    from workbench.frame import read_frame
-    from workbench.rig import RigSettings, simulate_campaign, write_with_truth
+    from workbench.io.campaign import Factor
+    from workbench.model.frame import read_frame
+    from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 
     from conftest import REPO
 

@@ -7,7 +7,7 @@ import csv
 import numpy as np
 import pytest
 
-from workbench.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial
+from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial
 
 from conftest import SHARED
 

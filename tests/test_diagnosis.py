@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from workbench.assembly import assemble
+from workbench.model.assembly import assemble
 from workbench.cli import main
-from workbench.diagnosis import ModalData, diagnose, diagnosis_record, observations
-from workbench.effects import Effect, apply_effect
-from workbench.frame import read_frame
-from workbench.modal import model_modes
+from workbench.diagnose.diagnosis import ModalData, diagnose, diagnosis_record, observations
+from workbench.rig.effects import Effect, apply_effect
+from workbench.model.frame import read_frame
+from workbench.model.modal import model_modes
 
 ONE_BOLT = REPO / "frames" / "one_bolt_vertical.toml"
 TWO_BOLT = REPO / "frames" / "two_bolt.toml"
@@ -44,7 +44,7 @@ def test_correlated_scatter_is_not_read_as_a_gap():
     # Tests whose frequencies move together (a joint scattering from test to test): the errors of
     # the means are correlated across modes. Weighted by their covariance, a chance scatter stays
     # under the gap threshold; weighted by the standard errors alone, it crosses it often.
-    from workbench.diagnosis import GAP_RATIO
+    from workbench.diagnose.diagnosis import GAP_RATIO
 
     rng = np.random.default_rng(3)
     direction = np.linspace(1, 3, 8) * 1e-3
@@ -124,7 +124,7 @@ def test_joint_damping_is_found_on_damping_alone():
     frame = _deterministic(TWO_BOLT)
     model = assemble(frame)
     modes = model_modes(model, 8)
-    from workbench.assembly import joint_energies
+    from workbench.model.assembly import joint_energies
 
     rest, per_joint = joint_energies(model, modes.shapes)
     share_b = per_joint[1] / (rest + per_joint.sum(axis=0))
@@ -181,7 +181,7 @@ def test_diagnose_command_writes_json_and_html(tmp_path, capsys):
 
 
 def test_one_blind_rig_case_from_frfs_through_the_circle_fit():
-    from workbench.rig_cases import run_case
+    from workbench.workflow.rig_cases import run_case
 
     result = run_case(read_frame(TWO_BOLT), "joint_stiffness_shift", seed=11)
     assert result.effect_right and result.place_right
@@ -190,7 +190,7 @@ def test_one_blind_rig_case_from_frfs_through_the_circle_fit():
 
 @pytest.mark.slow
 def test_blind_validation_meets_the_issue_targets():
-    from workbench.diagnosis_report import validate
+    from workbench.report.diagnosis_page import validate
 
     summary = validate(40, 1, TWO_BOLT)
     assert summary["top1_accuracy"] >= 0.85

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from workbench.frame import FrameFileError, frame_to_toml, parse_frame, read_frame, write_frame
+from workbench.model.frame import FrameFileError, frame_to_toml, parse_frame, read_frame, write_frame
 
 from conftest import SHARED
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from workbench.assembly import assemble
-from workbench.generate import multibay_frame
-from workbench.modal import Modes, frame_frf, modal_frf, model_modes, solve_modes
+from workbench.model.assembly import assemble
+from workbench.model.generate import multibay_frame
+from workbench.model.modal import Modes, frame_frf, modal_frf, model_modes, solve_modes
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ import sys
 import numpy as np
 import pytest
 
-from workbench.assembly import assemble
-from workbench.frame import read_frame
-from workbench.identify import (
+from workbench.model.assembly import assemble
+from workbench.model.frame import read_frame
+from workbench.identify.moments import (
     DEFAULT_START_COV,
     FrequencyData,
     identification_record,
@@ -23,9 +23,9 @@ from workbench.identify import (
     moment_matching,
     nominal_fit,
 )
-from workbench.modal import model_modes
-from workbench.smr import adaptive, sensitivities, smr1
-from workbench.stochastic import JointModel, quadrature_reference, tracked_frequencies
+from workbench.model.modal import model_modes
+from workbench.uq.smr import adaptive, sensitivities, smr1
+from workbench.uq.stochastic import JointModel, quadrature_reference, tracked_frequencies
 
 from conftest import CLAMP, REPO, SHARED, straight_beam
 
@@ -71,7 +71,7 @@ def one_bolt_moments_fit(one_bolt):
 
 
 def test_identify_stays_free_of_pandas_and_matplotlib():
-    code = ("import sys, workbench.identify; print(','.join(m for m in ('pandas', 'matplotlib') "
+    code = ("import sys, workbench.identify.moments; print(','.join(m for m in ('pandas', 'matplotlib') "
             "if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "" and done.stderr == ""
@@ -222,7 +222,7 @@ def test_moment_matching_intervals_from_per_test_data(one_bolt):
 
 
 def test_moment_bootstrap_is_seeded(one_bolt):
-    from workbench.identify import _moment_covariance
+    from workbench.identify.moments import _moment_covariance
 
     f = np.random.default_rng(1).normal(100.0, 1.0, size=(12, 3))
     f[0, 1] = np.nan  # a mode missed in one test
@@ -318,9 +318,10 @@ def test_both_estimators_recover_the_two_joint_model_of_the_table5_campaign():
     law not being a Gamma law), and the truth lies inside the Bayesian 95 % intervals."""
     import json
 
-    from workbench.assembly import assemble
-    from workbench.bayes import bayes_identify
-    from workbench.campaign import frequency_data, load_campaign
+    from workbench.model.assembly import assemble
+    from workbench.identify.bayes import bayes_identify
+    from workbench.io.campaign import load_campaign
+    from workbench.workflow.measured import frequency_data
 
     directory = REPO / "campaigns" / "two_bolt_table5"
     campaign = load_campaign(directory)

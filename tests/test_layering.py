@@ -1,22 +1,57 @@
-"""Numerical modules import neither pandas nor matplotlib (STYLE.md), and importing prints nothing."""
+"""The house's plan holds (ARCHITECTURE.md): numerical sub-packages import neither pandas, matplotlib
+nor tqdm (STYLE.md), importing prints nothing, and imports point one way between the layers."""
 
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
-NUMERICAL = ["workbench", "workbench.frame", "workbench.elements", "workbench.assembly", "workbench.modal",
-             "workbench.generate", "workbench.outputs", "workbench.stochastic", "workbench.smr", "workbench.designs",
-             "workbench.circlefit", "workbench.extraction", "workbench.identify", "workbench.bayes", "workbench.surrogate", "workbench.prediction", "workbench.effects", "workbench.diagnosis",
-             "workbench.workflow", "workbench.measured"]
+PACKAGE = Path(__file__).resolve().parents[1] / "workbench"
+NUMERICAL_PACKAGES = ("model", "uq", "extraction", "identify", "diagnose")
+# each layer and the layers it may import (ARCHITECTURE.md); a sub-package may import itself
+ALLOWED = {
+    "model": set(),
+    "uq": {"model"},
+    "extraction": {"model"},
+    "identify": {"model", "uq", "extraction"},
+    "rig": {"model", "io"},
+    "diagnose": {"model", "uq", "extraction", "rig"},
+    "io": {"model"},
+    "workflow": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io"},
+    "report": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "workflow"},
+}
+
+
+def _module(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+NUMERICAL = ["workbench"] + sorted(_module(p) for sub in NUMERICAL_PACKAGES for p in (PACKAGE / sub).glob("*.py"))
 
 
 @pytest.mark.parametrize("module", NUMERICAL)
-def test_numerical_module_stays_free_of_pandas_and_matplotlib(module):
-    code = (f"import sys, {module}; heavy = [m for m in ('pandas', 'matplotlib') if m in sys.modules]; "
+def test_numerical_module_stays_free_of_pandas_matplotlib_and_tqdm(module):
+    code = (f"import sys, {module}; heavy = [m for m in ('pandas', 'matplotlib', 'tqdm') if m in sys.modules]; "
             "print(','.join(heavy))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "", f"{module} pulls in {done.stdout.strip()}"
     assert done.stderr == ""
+
+
+def test_every_layer_imports_only_the_layers_below_it():
+    breaches = []
+    for path in PACKAGE.rglob("*.py"):
+        layer = path.relative_to(PACKAGE).parts[0]
+        if layer not in ALLOWED:  # cli.py, progress.py and the package's __init__
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("workbench."):
+                target = node.module.split(".")[1]
+                if target != layer and target in ALLOWED and target not in ALLOWED[layer]:
+                    breaches.append(f"{_module(path)} imports {node.module}")
+    assert breaches == []

@@ -9,9 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from workbench.assembly import assemble
-from workbench.frame import read_frame
-from workbench.modal import model_modes
+from workbench.model.assembly import assemble
+from workbench.model.frame import read_frame
+from workbench.model.modal import model_modes
 
 from conftest import REPO, SHARED
 

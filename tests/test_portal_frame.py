@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from workbench.assembly import assemble
-from workbench.frame import parse_frame, read_frame
-from workbench.modal import model_modes
+from workbench.model.assembly import assemble
+from workbench.model.frame import parse_frame, read_frame
+from workbench.model.modal import model_modes
 
 from conftest import SHARED
 

@@ -1,4 +1,4 @@
-"""Stochastic FRF bands and the section 5 transfer (workbench.prediction), against the nominal FRF,
+"""Stochastic FRF bands and the section 5 transfer (workbench.uq.prediction), against the nominal FRF,
 the exact quadrature moments, independent per-sample solves, a one-mode closed form and hand numbers."""
 
 from __future__ import annotations
@@ -8,12 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from workbench import prediction
-from workbench.assembly import assemble, with_joint_scale
-from workbench.frame import read_frame
-from workbench.modal import frame_frf, model_modes
-from workbench.prediction import compare_frequencies, frame_with_joint_models, frf_band
-from workbench.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference
+from workbench.uq import prediction
+from workbench.model.assembly import assemble, with_joint_scale
+from workbench.model.frame import read_frame
+from workbench.model.modal import frame_frf, model_modes
+from workbench.uq.prediction import compare_frequencies, frame_with_joint_models, frf_band
+from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference
 
 from conftest import REPO
 

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy.special import gammaln
 
-from workbench.assembly import assemble
-from workbench.frame import parse_frame, read_frame
-from workbench.generate import multibay_frame
-from workbench.modal import model_modes
-from workbench.smr import (adaptive, eigenvector_derivatives, pert2, propagate, sensitivities, smr1, smr2,
+from workbench.model.assembly import assemble
+from workbench.model.frame import parse_frame, read_frame
+from workbench.model.generate import multibay_frame
+from workbench.model.modal import model_modes
+from workbench.uq.smr import (adaptive, eigenvector_derivatives, pert2, propagate, sensitivities, smr1, smr2,
                            sqrt_moments)
-from workbench.stochastic import (JointModel, expectation_rule, gamma_gauss_rule, joint_model, monte_carlo,
+from workbench.uq.stochastic import (JointModel, expectation_rule, gamma_gauss_rule, joint_model, monte_carlo,
                                   quadrature_reference)
 
 from conftest import REPO
@@ -260,7 +260,7 @@ def test_smr_at_another_operating_point(vertical):
     sensitivities rescaled by gamma are refused where they would be wrong (SMR2, adaptive)."""
     from dataclasses import replace as replace_dc
 
-    from workbench.assembly import with_joint_scale
+    from workbench.model.assembly import with_joint_scale
 
     frame = vertical.frame
     moved = with_joint_scale(vertical, np.array([0.5]))

@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.campaign import Factor, load_campaign
-from workbench.designs import sweep_preloads
-from workbench.frame import read_frame
-from workbench.rig import (EFFECTS, Effect, JointLaw, LockedStress, RigSettings, add_noise, simulate_campaign,
+from workbench.io.campaign import Factor, load_campaign
+from workbench.rig.designs import sweep_preloads
+from workbench.model.frame import read_frame
+from workbench.rig.simulate import (EFFECTS, Effect, JointLaw, LockedStress, RigSettings, add_noise, simulate_campaign,
                            truth_path, write_with_truth)
 
 from conftest import REPO

@@ -1,4 +1,4 @@
-"""UFF dataset 58 exchange (workbench.uff): exact round trips, foreign files, rejected files."""
+"""UFF dataset 58 exchange (workbench.io.uff): exact round trips, foreign files, rejected files."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from conftest import SHARED
-from workbench.campaign import Campaign, Factor, load_campaign, write_campaign
-from workbench.frame import parse_frame
-from workbench.uff import DIRECTION_CODES, campaign_from_uff, export_frfs, import_frfs, uff_quantity
+from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign
+from workbench.model.frame import parse_frame
+from workbench.io.uff import DIRECTION_CODES, campaign_from_uff, export_frfs, import_frfs, uff_quantity
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -272,7 +272,7 @@ UNESP = SHARED / "data" / "real" / "unesp-bert-bolted-beam"
 @pytest.mark.skipif(not UNESP.is_dir(), reason="../shared/data/real/unesp-bert-bolted-beam is absent")
 def test_measured_campaign_round_trips_through_uff(tmp_path):
     """24 datasets of 1760 measured lines (LMS float32 values, 0.0625 Hz grid: even spacing)."""
-    from workbench.campaign_import import import_unesp_bert
+    from workbench.io.real_data import import_unesp_bert
 
     campaign = import_unesp_bert(UNESP)
     path = export_frfs(campaign, tmp_path / "unesp.uff")

@@ -12,11 +12,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from . import __version__
-from .assembly import assemble
-from .frame import read_frame
-from .modal import model_modes
-from .outputs import OutputExistsError, csv_text, json_text, write_outputs
+from workbench import __version__
+from workbench.model.assembly import assemble
+from workbench.model.frame import read_frame
+from workbench.model.modal import model_modes
+from workbench.io.outputs import OutputExistsError, csv_text, json_text, write_outputs
 
 __all__ = ["main"]
 
@@ -43,8 +43,8 @@ def _modes(args: argparse.Namespace) -> str:
 
 
 def _propagate(args: argparse.Namespace) -> str:
-    from .smr import propagate
-    from .stochastic import joint_model
+    from workbench.uq.smr import propagate
+    from workbench.uq.stochastic import joint_model
 
     model = assemble(read_frame(args.frame))
     joints = joint_model(model.frame)
@@ -69,8 +69,8 @@ def _propagate(args: argparse.Namespace) -> str:
 
 
 def _extract(args: argparse.Namespace) -> str:
-    from .campaign import load_campaign
-    from .measured import extract_campaign
+    from workbench.io.campaign import load_campaign
+    from workbench.workflow.measured import extract_campaign
 
     campaign = load_campaign(args.campaign)
     bands = None
@@ -98,8 +98,9 @@ def _extract(args: argparse.Namespace) -> str:
 
 
 def _identify(args: argparse.Namespace) -> str:
-    from .campaign import frequency_data, load_campaign
-    from .identify import identification_record, moment_matching
+    from workbench.io.campaign import load_campaign
+    from workbench.workflow.measured import frequency_data
+    from workbench.identify.moments import identification_record, moment_matching
 
     campaign = load_campaign(args.campaign)
     data = frequency_data(campaign, count=args.count)
@@ -114,7 +115,7 @@ def _identify(args: argparse.Namespace) -> str:
     else:
         import tempfile
 
-        from .bayes import bayes_identify, save_posterior
+        from workbench.identify.bayes import bayes_identify, save_posterior
 
         fit = bayes_identify(model, data, seed=args.seed, progress=sys.stderr.isatty())
         with tempfile.TemporaryDirectory() as tmp:  # through write_outputs: all files or none
@@ -133,7 +134,7 @@ def _notify(line: str) -> None:
 
 
 def _write_report(run, out: str, force: bool, start: float) -> str:
-    from .report import render_report
+    from workbench.report.page import render_report
 
     text = render_report(run, time.perf_counter() - start)
     write_outputs(out, {"index.html": text}, force=force)
@@ -143,7 +144,7 @@ def _write_report(run, out: str, force: bool, start: float) -> str:
 def _report(args: argparse.Namespace) -> str:
     from pathlib import Path
 
-    from .workflow import report_run
+    from workbench.workflow.study import report_run
 
     start = time.perf_counter()
     if (Path(args.out) / "index.html").exists() and not args.force:  # fail before minutes of work
@@ -158,7 +159,7 @@ DEMO_OUT = "reports/demo"
 
 
 def _demo(args: argparse.Namespace) -> str:
-    from .workflow import demo_run
+    from workbench.workflow.study import demo_run
 
     start = time.perf_counter()
     run = demo_run(args.campaigns, seed=args.seed, samples=args.samples, bayes_steps=args.steps,
@@ -168,7 +169,7 @@ def _demo(args: argparse.Namespace) -> str:
 
 
 def _diagnose(args: argparse.Namespace) -> str:
-    from .diagnosis_report import diagnose_campaign
+    from workbench.report.diagnosis_page import diagnose_campaign
 
     def say(message: str) -> None:
         print(f"diagnose: {message}", file=sys.stderr, flush=True)
@@ -181,7 +182,7 @@ def _diagnose(args: argparse.Namespace) -> str:
 
 
 def _validate_diagnosis(args: argparse.Namespace) -> str:
-    from .diagnosis_report import validate, validation_text
+    from workbench.report.diagnosis_page import validate, validation_text
 
     summary = validate(args.cases, args.seed, args.frame, args.out, args.force, progress=sys.stderr.isatty())
     print(validation_text(summary))

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import scipy
 
-from workbench.assembly import assemble
-from workbench.frame import read_frame
-from workbench.stochastic import joint_model, monte_carlo, quadrature_reference
+from workbench.model.assembly import assemble
+from workbench.model.frame import read_frame
+from workbench.uq.stochastic import joint_model, monte_carlo, quadrature_reference
 
 REPO = Path(__file__).resolve().parents[2]
 OUT = Path(__file__).with_name("propagation_one_bolt.json")

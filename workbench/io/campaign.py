@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .frame import Frame, FrameFileError, frame_to_toml, read_frame, toml_string
-from .modal import QUANTITIES, FRFSet
-from .outputs import write_outputs
+from workbench.model.frame import Frame, FrameFileError, frame_to_toml, read_frame, toml_string
+from workbench.model.modal import QUANTITIES, FRFSet
+from workbench.io.outputs import write_outputs
 
 __all__ = [
     "CampaignError",
@@ -38,10 +38,8 @@ __all__ = [
     "write_campaign",
     "campaign_toml",
     "frf_set",
-    "frequency_data",
     "PAPER_AMPLITUDE_RATIOS",
     "amplitude_of_tests",
-    "modal_data",
 ]
 
 FACTOR_KINDS = ("tightening", "amplitude", "other")
@@ -437,61 +435,6 @@ def frf_set(campaign: Campaign, test_id) -> FRFSet:
 
 
 
-def _mode_table(campaign: Campaign, count: int | None = None) -> tuple[pd.DataFrame, str] | None:
-    """Per-test modes (test_id, mode, frequency_hz, damping_ratio): ``modes.csv``, else extracted.
-
-    Extraction is by circle fit of every test's FRFs, bands shared across tests; modes whose fit
-    is flagged ``weak`` or ``poor_circle`` are left out of that test. None without modes or FRFs.
-    """
-    source = str(campaign.path or campaign.name)
-    if campaign.modes is None and campaign.frf is not None:
-        from .measured import extract_campaign
-
-        extraction = extract_campaign(campaign, count=count)
-        f, d = extraction.frequency_hz(), extraction.damping_ratio()  # NaN where weak or poor_circle
-        rows = [(t, k + 1, f[i, k], d[i, k]) for i, t in enumerate(extraction.tests) for k in range(f.shape[1])
-                if np.isfinite(f[i, k])]
-        return (pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz", "damping_ratio"]),
-                source + " (modes by circle fit of its FRFs)")
-    if campaign.modes is not None:
-        return campaign.modes, source + "/modes.csv"
-    return None
-
-
-def _wide(campaign: Campaign, table: pd.DataFrame, column: str, count: int | None) -> pd.DataFrame:
-    wide = table.pivot(index="test_id", columns="mode", values=column).sort_index(axis=1)
-    if count is not None:
-        wide = wide.loc[:, wide.columns <= count]
-    return wide.reindex(campaign.test_ids)
-
-
-def frequency_data(campaign: Campaign, count: int | None = None):
-    """The campaign's measured eigenfrequencies for identification (`workbench.identify.FrequencyData`).
-
-    From ``modes.csv`` when there is one, else extracted from the FRFs by circle fit (`_mode_table`),
-    else the published moments (no individual tests).
-
-    Parameters
-    ----------
-    count : use at most the first ``count`` modes.
-    """
-    from .identify import FrequencyData
-
-    source = str(campaign.path or campaign.name)
-    found = _mode_table(campaign, count)
-    if found is None and campaign.moments is not None:
-        m = campaign.moments.sort_values("mode")
-        if count is not None:
-            m = m[m["mode"] <= count]
-        return FrequencyData(m["mode"].to_numpy(), m["mean_hz"].to_numpy(), m["std_hz"].to_numpy(),
-                             source=source + "/moments.csv")
-    if found is None:
-        _fail(source, "holds no modes, FRFs or moments to identify from")
-    table, source = found
-    wide = _wide(campaign, table, "frequency_hz", count)
-    return FrequencyData.from_tests(tuple(wide.index), wide.columns.to_numpy(), wide.to_numpy(float), source)
-
-
 # Paper 2.2.2: the high excitation amplitude is five times the low one.
 PAPER_AMPLITUDE_RATIOS = {"low": 1.0, "high": 5.0}
 
@@ -518,27 +461,3 @@ def amplitude_of_tests(campaign: Campaign) -> np.ndarray | None:
     if np.any(values <= 0) or not np.all(np.isfinite(values)):
         _fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels must be positive numbers")
     return values / values.min()
-
-
-def modal_data(campaign: Campaign, count: int | None = None):
-    """The campaign's modes for the diagnosis (`workbench.diagnosis.ModalData`).
-
-    Every test's frequencies and damping ratios (``modes.csv`` or circle fit) with its excitation
-    amplitude; else the published moments (one row of means, the published std, 9 tests assumed
-    behind them when the campaign does not say).
-    """
-    from .diagnosis import ModalData
-
-    found = _mode_table(campaign, count)
-    if found is None and campaign.moments is not None:
-        m = campaign.moments.sort_values("mode")
-        if count is not None:
-            m = m[m["mode"] <= count]
-        return ModalData(m["mean_hz"].to_numpy()[None, :], std_hz=m["std_hz"].to_numpy(),
-                         tests_count=len(campaign.test_ids) or 9, modes=m["mode"].to_numpy())
-    if found is None:
-        _fail(str(campaign.path or campaign.name), "holds no modes, FRFs or moments to diagnose")
-    table, _ = found
-    f = _wide(campaign, table, "frequency_hz", count)
-    damping = _wide(campaign, table, "damping_ratio", count).to_numpy(float) if "damping_ratio" in table else None
-    return ModalData(f.to_numpy(float), damping, amplitude_of_tests(campaign), modes=f.columns.to_numpy())

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
 
-from .modal import Modes, model_modes, solve_modes
+from workbench.model.modal import Modes, model_modes, solve_modes
 
 __all__ = ["JointModel", "joint_model", "FrequencyMoments", "MonteCarloResult", "monte_carlo", "track_modes",
            "gamma_gauss_rule", "expectation_rule", "tracked_frequencies", "quadrature_reference"]
@@ -266,7 +266,7 @@ def monte_carlo(model, joints: JointModel, count: int = 10, samples: int = 10_00
 
     Parameters
     ----------
-    model : assembled `workbench.assembly.Model`.
+    model : assembled `workbench.model.assembly.Model`.
     joints : the joint model (one law per joint of the model).
     count : modes to track (the nominal model's first ``count``).
     samples : number of joint draws.

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse as sp
 
-from . import elements
-from .frame import DOF_NAMES, Frame, locate_point, member_length
+from workbench.model import elements
+from workbench.model.frame import DOF_NAMES, Frame, locate_point, member_length
 
 __all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "geometric_stiffness",
            "element_energies", "joint_energies", "strain_energy", "with_joint_scale"]

@@ -59,9 +59,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .campaign import FRF_COLUMNS, Campaign, Factor
-from .frame import Frame
-from .modal import QUANTITIES
+from workbench.io.campaign import FRF_COLUMNS, Campaign, Factor
+from workbench.model.frame import Frame
+from workbench.model.modal import QUANTITIES
 
 __all__ = [
     "DIRECTION_CODES",
@@ -389,7 +389,7 @@ def campaign_from_uff(uff_path: str | Path, frame: Frame, name: str, quantity: s
 
     ``design`` defaults to one row per test found, without factors (then ``factors`` must be
     empty). The quantity and the reference (force or voltage) are the file's. The campaign is
-    built in memory; `workbench.campaign.write_campaign` writes it and `load_campaign` validates it.
+    built in memory; `workbench.io.campaign.write_campaign` writes it and `load_campaign` validates it.
     """
     table, found, reference = _read(uff_path, frame, sensor_map, quantity, test_id)
     if design is None:

@@ -1,11 +1,11 @@
 """The identification report: one self-contained HTML page, read like a test-lab report.
 
-`render_report` turns a `workbench.workflow.Run` (campaign studies and section 5 predictions)
-into ``index.html``: figures embedded as base64 PNG (`workbench.plots`), CSS inline, no script and
+`render_report` turns a `workbench.workflow.study.Run` (campaign studies and section 5 predictions)
+into ``index.html``: figures embedded as base64 PNG (`workbench.report.plots`), CSS inline, no script and
 no external address, so that the page opens offline and prints. Plots come before tables. Synthetic
 campaigns carry a banner ("SYNTHETIC - virtual test rig") and are never called measured.
 
-The figures of the benchmarks live in `workbench.plots`; ``plt``, ``save_figure``,
+The figures of the benchmarks live in `workbench.report.plots`; ``plt``, ``save_figure``,
 ``moment_error_figure`` and ``plot_moment_errors`` are re-exported here for the scripts that
 imported them from this module before the split.
 """
@@ -19,11 +19,11 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from . import __version__
-from .plots import (band_figure, band_zoom_figure, figure_png, forest_figure, frf_overlay_figure, moment_error_figure,
+from workbench import __version__
+from workbench.report.plots import (band_figure, band_zoom_figure, figure_png, forest_figure, frf_overlay_figure, moment_error_figure,
                     nyquist_figure, plot_moment_errors, plt, posterior_figure, prediction_figure, save_figure)
-from .measured import campaign_label, mode_windows, nyquist_data
-from .workflow import Prediction, Run, Study
+from workbench.workflow.measured import campaign_label, mode_windows, nyquist_data
+from workbench.workflow.study import Prediction, Run, Study
 
 __all__ = ["render_report", "SECTION_TITLES", "CSS", "html_table", "html_figure", "plt", "save_figure",
            "moment_error_figure", "plot_moment_errors"]
@@ -218,7 +218,7 @@ def _posterior_section(study: Study) -> str:
     post = study.posterior
     if post is None:
         return _absent(f"the Bayesian estimator was {study.bayes_note}.")
-    from .bayes import _arviz  # arviz imported with its FutureWarning silenced
+    from workbench.identify.bayes import _arviz  # arviz imported with its FutureWarning silenced
 
     fig = posterior_figure(post, _arviz())
     rows = []
@@ -387,7 +387,7 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
 
     Parameters
     ----------
-    run : studies and predictions (`workbench.workflow.report_run` or `demo_run`).
+    run : studies and predictions (`workbench.workflow.study.report_run` or `demo_run`).
     total_wall_s : the whole command's wall time, s, shown in "what was done".
     """
     campaigns = [s.campaign for s in run.studies] + [p.campaign for p in run.predictions]

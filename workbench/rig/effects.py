@@ -1,7 +1,7 @@
 """The vocabulary of sim-to-real effects (CONTRACTS.md section 3) as changes of a frame.
 
-One definition serves both sides: the virtual rig (`workbench.rig`) injects an `Effect` into the
-tested article, and the diagnosis (`workbench.diagnosis`) fits the same parametrised enrichments
+One definition serves both sides: the virtual rig (`workbench.rig.simulate`) injects an `Effect` into the
+tested article, and the diagnosis (`workbench.diagnose.diagnosis`) fits the same parametrised enrichments
 to a campaign. Frame-level effects change the frame (`apply_effect`); joint-level ones
 (joint_stiffness_shift changes the frame too; amplitude_softening, joint_damping) act on the joint
 physics of whoever uses them.
@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from .frame import Frame, GroundSpring, Joint, PointMass, member_length
+from workbench.model.frame import Frame, GroundSpring, Joint, PointMass, member_length
 
 __all__ = ["EFFECTS", "DAMAGE_JOINT", "Effect", "apply_effect", "set_member"]
 

@@ -1,7 +1,7 @@
 """Bayesian identification of the joints' stochastic models: full likelihood, emcee, arviz.
 
 Every test's extracted frequencies enter the likelihood (not their moments). The model, per joint
-group g (`workbench.identify.JointGroups`) with mean modulus ``E_g`` and CoV ``c_g``, and per
+group g (`workbench.identify.moments.JointGroups`) with mean modulus ``E_g`` and CoV ``c_g``, and per
 mode k with a relative model/measurement error ``sigma_k``:
 
     Y_tj ~ Gamma(shape = 1 / c_g^2, scale = E_g c_g^2)   independent over tests t and joints j
@@ -82,9 +82,9 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.special import gammaln, logsumexp
 
-from .identify import FrequencyData, JointGroups, joint_groups
-from .smr import sensitivities
-from .surrogate import ForwardTable, forward_table, frequencies_at, model_at
+from workbench.identify.moments import FrequencyData, JointGroups, joint_groups
+from workbench.uq.smr import sensitivities
+from workbench.identify.surrogate import ForwardTable, forward_table, frequencies_at, model_at
 
 __all__ = [
     "MODULUS_BOUNDS_PA",

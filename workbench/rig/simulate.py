@@ -12,7 +12,7 @@ What a test of the rig is (one row of the design):
    stuck, and vanishes once it is stuck: frequencies rise with tightening toward a limit with
    decreasing increments. One law per joint group (the paper's vertical and horizontal joints).
    `JointLaw.calibrated` sets ``r`` and ``Y_stuck`` so that, over the one-bolt tightening sweep
-   (`workbench.designs.sweep_preloads`, 9 levels) at low amplitude, the modulus has the frame
+   (`workbench.rig.designs.sweep_preloads`, 9 levels) at low amplitude, the modulus has the frame
    file's mean and a chosen CoV (Table 4 of the paper identifies its moduli from that sweep).
    An exponential rather than a logistic law: it has one shape parameter fewer, and the paper's
    sweep, denser at low preload (section 4.2), points at a law steepest at the start.
@@ -74,13 +74,13 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
-from .assembly import assemble, joint_energies
-from .campaign import PAPER_AMPLITUDE_RATIOS, Campaign, Factor, write_campaign
-from .designs import sweep_preloads
-from .effects import DAMAGE_JOINT, EFFECTS, Effect, apply_effect, set_member
-from .frame import Frame
-from .modal import add_noise, frame_frf, model_modes
-from .outputs import json_text, write_outputs
+from workbench.model.assembly import assemble, joint_energies
+from workbench.io.campaign import PAPER_AMPLITUDE_RATIOS, Campaign, Factor, write_campaign
+from workbench.rig.designs import sweep_preloads
+from workbench.rig.effects import DAMAGE_JOINT, EFFECTS, Effect, apply_effect, set_member
+from workbench.model.frame import Frame
+from workbench.model.modal import add_noise, frame_frf, model_modes
+from workbench.io.outputs import json_text, write_outputs
 
 __all__ = [
     "EFFECTS",
@@ -336,7 +336,7 @@ def simulate_campaign(frame: Frame, factors, design: list[dict[str, str]], setti
                                 columns=["test_id"] + [f.name for f in factors])
     campaign = Campaign(name=name, frame=frame, synthetic=True, quantity=settings.quantity,
                         description=description,
-                        source=source or "synthetic: the workbench's virtual test rig (workbench.rig)",
+                        source=source or "synthetic: the workbench's virtual test rig (workbench.rig.simulate)",
                         factors=factors, design=design_table, frf=frf_table)
     nominal = model_modes(assemble(frame), settings.mode_count).frequency_hz
     truth = {

@@ -1,6 +1,6 @@
 """Modal extraction from many FRFs: mode bands, a circle fit per curve, quality-weighted combination.
 
-Builds on `workbench.circlefit` (one curve, one band): `find_mode_bands` finds the modes across
+Builds on `workbench.extraction.circlefit` (one curve, one band): `find_mode_bands` finds the modes across
 sensors and tests (peak detection, with a user override), `fit_modes` fits every curve in every
 band, `combine` merges the curves of one mode with weights from their fit quality, and
 `error_vs_snr` measures the accuracy of the whole chain against synthetic FRFs.
@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import find_peaks
 
-from .circlefit import (CLOSE_BANDWIDTHS, FLAGS, MIN_BAND_POINTS, WEIGHT_FLOOR, ModalFit, _check_frequency,
+from workbench.extraction.circlefit import (CLOSE_BANDWIDTHS, FLAGS, MIN_BAND_POINTS, WEIGHT_FLOOR, ModalFit, _check_frequency,
                         _check_frfs, _check_quantity, circle_fit, noise_level)
-from .modal import add_noise, modal_superposition
+from workbench.model.modal import add_noise, modal_superposition
 
 __all__ = ["ModeEstimate", "find_mode_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]
 

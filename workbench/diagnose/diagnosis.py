@@ -3,7 +3,7 @@
 The paper (section 5.2) ends with a gap it cannot close: the four-bolt frame's mean frequencies are
 over-estimated, and the authors suspect the beam model, the boundary conditions, the joint model
 or stress locked in by the tightening sequence. This module answers with the vocabulary of
-CONTRACTS.md section 3 (`workbench.effects`).
+CONTRACTS.md section 3 (`workbench.rig.effects`).
 
 **Observations.** The tests are grouped by excitation amplitude (one condition when the campaign
 has no amplitude factor). For each condition ``c`` and measured mode ``i``: the mean frequency
@@ -28,7 +28,7 @@ the share of the weighted residual a one-parameter change of that region explain
 cosine, 0 to 1). Joints are also scored on the damping residuals against their energy share.
 
 **Which** (`diagnose`): each effect of the vocabulary, at each place it can sit, is the nominal
-frame changed by `workbench.effects.apply_effect` with one parameter (a support's rotational
+frame changed by `workbench.rig.effects.apply_effect` with one parameter (a support's rotational
 stiffness, a mass, a shear coefficient, a stinger stiffness, an axial force, a joint's modulus
 factor, a softening slope, a joint loss factor); added masses also choose their position along
 a member. The exact frequencies are computed on a grid of the parameter, tracked by MAC from
@@ -62,11 +62,11 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import linear_sum_assignment, minimize_scalar
 from scipy.sparse.linalg import splu
 
-from .assembly import assemble, element_energies, joint_energies
-from .effects import Effect, apply_effect
-from .frame import Frame, member_length
-from .modal import Modes, model_modes
-from .stochastic import track_modes
+from workbench.model.assembly import assemble, element_energies, joint_energies
+from workbench.rig.effects import Effect, apply_effect
+from workbench.model.frame import Frame, member_length
+from workbench.model.modal import Modes, model_modes
+from workbench.uq.stochastic import track_modes
 
 __all__ = ["GAP_RATIO", "EXPLAINED_RATIO", "MIN_SHRINKAGE", "ModalData", "Observations", "Region",
            "CandidateFit", "Diagnosis", "observations", "localise", "diagnose", "diagnosis_record", "members_at"]
@@ -235,8 +235,8 @@ def _baseline(frame: Frame, obs: Observations) -> _Baseline:
     modes = model_modes(model, count)
     ratio = np.ones(count)
     if any(j.cov > 0 for j in frame.joints):
-        from .smr import adaptive
-        from .stochastic import joint_model
+        from workbench.uq.smr import adaptive
+        from workbench.uq.stochastic import joint_model
 
         moments = adaptive(model, joint_model(frame), count)
         ratio = moments.mean_hz / moments.nominal_hz

@@ -182,11 +182,11 @@ def model_modes(model, count: int = 10, gamma: np.ndarray | None = None, method:
     """First ``count`` modes of an assembled `Model` with joint moduli ``gamma`` (default: nominal).
 
     The eigenvalues are the Rayleigh quotients of the eigenvectors with the strain energy summed
-    element by element (`workbench.assembly.strain_energy`): stationary, so accurate to the
+    element by element (`workbench.model.assembly.strain_energy`): stationary, so accurate to the
     square of the eigenvector error, and free of the cancellation that limits ``phi^T K phi`` on
     the assembled matrix to about 1e-7. Dense and sparse solutions then agree to about 1e-11.
     """
-    from .assembly import strain_energy
+    from workbench.model.assembly import strain_energy
 
     modes = solve_modes(model.stiffness(gamma), model.mass, count, method)
     values = strain_energy(model, modes.shapes, gamma)

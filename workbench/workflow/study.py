@@ -1,23 +1,23 @@
 """The identification report's and the demo's workflow, numbers only (no figure, no HTML).
 
 One campaign (`study_campaign`): its FRFs -> circle-fit modes of every test
-(`workbench.measured.extract_campaign`)
+(`workbench.workflow.measured.extract_campaign`)
 -> the nominal fit, eq. (1), and the paper's two-step moment matching, eq. (10)-(11)
-(`workbench.identify.moment_matching`) -> the Bayesian identification (`workbench.bayes`) where it
+(`workbench.identify.moments.moment_matching`) -> the Bayesian identification (`workbench.identify.bayes`) where it
 applies -> SMR1, SMR2, adaptive and Pert2 against a seeded Monte Carlo on the identified model
-(Figure 11) -> the stochastic FRF of the identified model (Figure 12, `workbench.prediction.frf_band`)
+(Figure 11) -> the stochastic FRF of the identified model (Figure 12, `workbench.uq.prediction.frf_band`)
 with the measured mean modal damping of each mode (paper 2.2.2).
 
 Section 5 (`predict_campaign`): the joint models identified on the one-bolt frames, one per joint
 group (vertical, horizontal; Table 4), applied to a multi-bolt frame
-(`workbench.prediction.frame_with_joint_models`), whose frequency moments (adaptive SMR) and FRF
+(`workbench.uq.prediction.frame_with_joint_models`), whose frequency moments (adaptive SMR) and FRF
 band are set against that frame's own measured FRFs and circle-fit frequencies (Figures 14, 16).
 
-Each stage returns a frozen record that the report draws (`workbench.report`, `workbench.plots`).
+Each stage returns a frozen record that the report draws (`workbench.report.page`, `workbench.report.plots`).
 Random steps take the ``seed`` given and record it; ``notify`` receives one line per finished
 step (the command line prints it); ``progress`` turns on the tqdm bars of the long steps (Monte
 Carlo, emcee, FRF band). This module imports neither pandas nor matplotlib: campaigns are loaded
-through `workbench.campaign`, imported where they are loaded.
+through `workbench.io.campaign`, imported where they are loaded.
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .assembly import assemble
-from .identify import FrequencyData, MomentFit, moment_matching
-from .measured import Extraction, campaign_label, extract_campaign, frequency_axis, load_campaigns
-from .prediction import FRFBand, FrequencyComparison, compare_frequencies, frame_with_joint_models, frf_band
-from .stochastic import TENSOR_LIMIT, FrequencyMoments, MonteCarloResult, joint_model, monte_carlo, quadrature_reference
+from workbench.model.assembly import assemble
+from workbench.identify.moments import FrequencyData, MomentFit, moment_matching
+from workbench.workflow.measured import Extraction, campaign_label, extract_campaign, frequency_axis, load_campaigns
+from workbench.uq.prediction import FRFBand, FrequencyComparison, compare_frequencies, frame_with_joint_models, frf_band
+from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, MonteCarloResult, joint_model, monte_carlo, quadrature_reference
 
 __all__ = ["ACCURACY_METHODS", "Step", "Accuracy", "JointSource", "Study", "study_campaign", "joint_sources",
            "Prediction", "predict_campaign", "Run", "identify_sources", "report_run", "demo_run", "DEMO_STUDIES",
@@ -76,7 +76,7 @@ class Accuracy:
     """Figure 11: the frequency moments of the SMR methods against references, on one model.
 
     As in ``benchmarks/smr_accuracy.py``: the errors are measured against the exact tensor-Gauss
-    reference (`workbench.stochastic.quadrature_reference`, no sampling noise) where it is
+    reference (`workbench.uq.stochastic.quadrature_reference`, no sampling noise) where it is
     affordable, with the seeded Monte Carlo as one more bar and its 3-standard-error band; without
     the exact reference, against the Monte Carlo. (A Monte Carlo of a few hundred samples has a
     std error of several % on the std: alone it could not resolve SMR errors of 0.1-1 %.)
@@ -86,7 +86,7 @@ class Accuracy:
     methods : method name (`ACCURACY_METHODS`) -> its moments of the first modes.
     reference : the Monte Carlo (draws, seed, standard errors).
     exact : the quadrature moments, or None (more random joints than the tensor rule's
-        `workbench.stochastic.TENSOR_LIMIT`).
+        `workbench.uq.stochastic.TENSOR_LIMIT`).
     """
 
     methods: dict
@@ -187,7 +187,7 @@ def _bayes_refusal(campaign, data: FrequencyData, bayes: bool) -> str:
     if not data.has_tests:
         return ("not run: the campaign holds only published moments, and the full likelihood needs every "
                 "test's frequencies")
-    if len(campaign.frame.joints) > 2:  # workbench.bayes integrates one or two latent joint moduli per test
+    if len(campaign.frame.joints) > 2:  # workbench.identify.bayes integrates one or two latent joint moduli per test
         return (f"not run: the frame has {len(campaign.frame.joints)} random joints; the Bayesian estimator "
                 "integrates at most two per test (a 4-D rule would not fit its time budget)")
     return ""
@@ -200,7 +200,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
 
     Parameters
     ----------
-    campaign : a loaded campaign (`workbench.campaign.load_campaign`).
+    campaign : a loaded campaign (`workbench.io.campaign.load_campaign`).
     extraction : its circle-fit modes if already extracted (`extract_campaign`); extracted here
         when None and the campaign has FRFs.
     seed : seeds the bootstrap of the moment matching's intervals, emcee, the Monte Carlo reference
@@ -212,7 +212,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     workers : processes of the Monte Carlo reference.
     progress : tqdm bars on the long steps (standard error); notify : one line per finished step.
     """
-    from .campaign import frequency_data
+    from workbench.workflow.measured import frequency_data
 
     steps = _Steps(notify, f"{campaign_label(campaign)}: ")
     source = str(campaign.path or campaign.name)
@@ -238,7 +238,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
 
     posterior, bayes_note = None, _bayes_refusal(campaign, data, bayes)
     if not bayes_note:
-        from .bayes import bayes_identify
+        from workbench.identify.bayes import bayes_identify
 
         start = time.perf_counter()
         burn = min(500, bayes_steps // 4) if bayes_burn is None else bayes_burn
@@ -279,7 +279,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
 
 
 def _propagate(model, joints, method: str, count: int, seed: int) -> FrequencyMoments:
-    from .smr import propagate
+    from workbench.uq.smr import propagate
 
     return propagate(model, joints, method, count, seed=seed)
 
@@ -385,7 +385,7 @@ def identify_sources(loaded: Mapping[str, tuple], seed: int = 0) -> dict[str, Jo
     ValueError
         Two campaigns identify the same joint group.
     """
-    from .campaign import frequency_data
+    from workbench.workflow.measured import frequency_data
 
     sources: dict[str, JointSource] = {}
     for path, (campaign, extraction) in loaded.items():

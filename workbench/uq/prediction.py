@@ -3,7 +3,7 @@
 `frf_band` gives the mean, the envelope and the 5-95 % band of the FRF magnitude of a frame whose
 joint moduli follow the Gamma laws of eq. (8)-(9), as in the paper's Figures 12, 14 and 16: Monte
 Carlo over the joints, one exact eigen-solve per sample, the modes tracked against the nominal ones
-by MAC (`workbench.stochastic.track_modes`), and the FRF by modal superposition with the measured
+by MAC (`workbench.uq.stochastic.track_modes`), and the FRF by modal superposition with the measured
 modal damping of each tracked mode. `frame_with_joint_models` applies joint models identified on
 the one-bolt frames to the two- and four-bolt frames (section 5), and `compare_frequencies` sets
 the predicted frequency moments beside the measured ones.
@@ -16,9 +16,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .frame import Frame
-from .modal import QUANTITIES, Modes, frame_frf, modal_superposition, model_modes, solve_modes
-from .stochastic import FrequencyMoments, JointModel, track_modes
+from workbench.model.frame import Frame
+from workbench.model.modal import QUANTITIES, Modes, frame_frf, modal_superposition, model_modes, solve_modes
+from workbench.uq.stochastic import FrequencyMoments, JointModel, track_modes
 
 __all__ = ["FRFBand", "frf_band", "frame_with_joint_models", "FrequencyComparison", "compare_frequencies"]
 
@@ -116,8 +116,8 @@ def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio:
 
     Parameters
     ----------
-    model : assembled `workbench.assembly.Model` of a frame with sensors and an excitation.
-    joints : Gamma laws of the model's joints (`workbench.stochastic.joint_model`).
+    model : assembled `workbench.model.assembly.Model` of a frame with sensors and an excitation.
+    joints : Gamma laws of the model's joints (`workbench.uq.stochastic.joint_model`).
     frequency_hz : (n_freq,) frequency lines, Hz.
     damping_ratio : (n,) modal damping ratios of the nominal modes in order; the last repeats.
     quantity : ``"accelerance"`` (m/s^2/N), ``"mobility"`` (m/s/N) or ``"receptance"`` (m/N).
@@ -264,7 +264,7 @@ def compare_frequencies(predicted: FrequencyMoments, measured_hz: np.ndarray, mo
 
     Parameters
     ----------
-    predicted : moments from `workbench.smr.propagate` or `workbench.stochastic.monte_carlo`.
+    predicted : moments from `workbench.uq.smr.propagate` or `workbench.uq.stochastic.monte_carlo`.
     measured_hz : (n_tests, n_modes) extracted frequencies, Hz, column k-1 for mode k; NaN where a
         test did not find the mode. Statistics skip NaNs; the std has ddof=1.
     modes : 1-based mode numbers to compare; default every mode both sides have.

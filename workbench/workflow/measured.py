@@ -1,12 +1,12 @@
 """What the tests measured: the circle-fit modes of every test of a campaign, read for the report.
 
 `extract_campaign` is the one place a campaign's FRFs go through the circle fit
-(`workbench.extraction.extract_tests`; `workbench extract`, the report and the demo all call it);
+(`workbench.extraction.modes.extract_tests`; `workbench extract`, the report and the demo all call it);
 `load_campaigns` runs it for several campaigns in worker processes. `Extraction` gives the
 per-test frequencies and damping as arrays (NaN where a fit is unusable), the identification's
 `FrequencyData`, and the measured mean damping that the FRF synthesis uses (paper 2.2.2);
-`nyquist_data` and `mode_windows` prepare what the report draws of them. No pandas or matplotlib
-here: campaigns are loaded through `workbench.campaign`, imported where they are loaded.
+`nyquist_data` and `mode_windows` prepare what the report draws of them. `measured_modes` turns a
+campaign (modes.csv, FRFs or published moments) into the one `MeasuredModes` record. No matplotlib here.
 """
 
 from __future__ import annotations
@@ -18,24 +18,29 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
-from .circlefit import to_mobility
-from .extraction import ModeEstimate, extract_tests
-from .identify import FrequencyData
-from .modal import modal_superposition
-from .prediction import FRFBand
+from workbench.extraction.circlefit import to_mobility
+from workbench.extraction.modes import ModeEstimate, extract_tests
+from workbench.diagnose.diagnosis import ModalData
+from workbench.extraction.records import MeasuredModes
+from workbench.identify.moments import FrequencyData
+from workbench.io.campaign import Campaign, CampaignError, amplitude_of_tests, frf_set, load_campaign
+from workbench.model.modal import modal_superposition
+from workbench.uq.prediction import FRFBand
 
 __all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract", "load_campaigns",
-           "campaign_label", "frequency_axis", "NyquistData", "nyquist_data", "mode_windows"]
+           "campaign_label", "frequency_axis", "NyquistData", "nyquist_data", "mode_windows", "measured_modes",
+           "frequency_data", "modal_data"]
 
 # A mode whose combined fit carries one of these flags is left out of that test, as in
-# `workbench.campaign.frequency_data`: the circle is lost in noise or is not a circle.
+# `measured_modes`: the circle is lost in noise or is not a circle.
 UNUSABLE_FLAGS = ("weak", "poor_circle")
 
 
 @dataclass(frozen=True)
 class Extraction:
-    """Circle-fit modes of every test of a campaign (`workbench.extraction.extract_tests`).
+    """Circle-fit modes of every test of a campaign (`workbench.extraction.modes.extract_tests`).
 
     Attributes
     ----------
@@ -88,7 +93,7 @@ class Extraction:
 
 
 def extract_campaign(campaign, bands=None, count: int | None = None) -> Extraction:
-    """Circle-fit modes of every test of ``campaign`` (`workbench.campaign.Campaign` with FRFs).
+    """Circle-fit modes of every test of ``campaign`` (`workbench.io.campaign.Campaign` with FRFs).
 
     Parameters
     ----------
@@ -101,8 +106,6 @@ def extract_campaign(campaign, bands=None, count: int | None = None) -> Extracti
     ValueError
         The campaign has no FRFs.
     """
-    from .campaign import frf_set
-
     if campaign.frf is None:
         raise ValueError(f"{campaign.path or campaign.name}: frf.csv: the campaign has no FRFs to extract modes from")
     start = time.perf_counter()
@@ -114,8 +117,6 @@ def extract_campaign(campaign, bands=None, count: int | None = None) -> Extracti
 
 def load_and_extract(path: str | Path):
     """``(campaign, extraction or None)`` of a campaign directory; None when it has no FRFs."""
-    from .campaign import load_campaign
-
     campaign = load_campaign(path)
     return campaign, (extract_campaign(campaign) if campaign.frf is not None else None)
 
@@ -173,7 +174,7 @@ class NyquistData:
 def nyquist_data(extraction: Extraction, test=None) -> list[NyquistData]:
     """The circle fit of every mode on the best curve (largest combination weight) of one test
     (default the first): the measured mobility points of the band and the fitted
-    ``i w (A / (w_r^2 - w^2 + 2 i zeta w_r w) + U - L / w^2)`` (Ewins 4.3; `workbench.circlefit`)."""
+    ``i w (A / (w_r^2 - w^2 + 2 i zeta w_r w) + U - L / w^2)`` (Ewins 4.3; `workbench.extraction.circlefit`)."""
     test = extraction.tests[0] if test is None else test
     frfs = extraction.sets[test]
     out = []
@@ -234,3 +235,76 @@ def frequency_axis(extraction: Extraction) -> np.ndarray:
     """The campaign's frequency axis without 0 Hz (where an accelerance or mobility is 0: no log)."""
     f = next(iter(extraction.sets.values())).frequency_hz
     return f[f > 0]
+
+
+def _mode_table(campaign: Campaign, count: int | None = None):
+    """Per-test modes (test_id, mode, frequency_hz, damping_ratio): ``modes.csv``, else extracted.
+
+    Extraction is by circle fit of every test's FRFs, bands shared across tests; modes whose fit
+    is flagged ``weak`` or ``poor_circle`` are left out of that test. None without modes or FRFs.
+    """
+    source = str(campaign.path or campaign.name)
+    if campaign.modes is None and campaign.frf is not None:
+        extraction = extract_campaign(campaign, count=count)
+        f, d = extraction.frequency_hz(), extraction.damping_ratio()  # NaN where weak or poor_circle
+        rows = [(t, k + 1, f[i, k], d[i, k]) for i, t in enumerate(extraction.tests) for k in range(f.shape[1])
+                if np.isfinite(f[i, k])]
+        table = pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz", "damping_ratio"])
+        return table, source + " (modes by circle fit of its FRFs)"
+    if campaign.modes is not None:
+        return campaign.modes, source + "/modes.csv"
+    return None
+
+
+def _wide(campaign: Campaign, table, column: str, count: int | None):
+    wide = table.pivot(index="test_id", columns="mode", values=column).sort_index(axis=1)
+    if count is not None:
+        wide = wide.loc[:, wide.columns <= count]
+    return wide.reindex(campaign.test_ids)
+
+
+def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = "identify") -> MeasuredModes:
+    """The campaign's measured modes: ``modes.csv``, else the circle fit of its FRFs, else its published moments.
+
+    Parameters
+    ----------
+    count : use at most the first ``count`` modes.
+    purpose : what the modes are for, in the error message when the campaign has none.
+
+    Raises
+    ------
+    CampaignError
+        The campaign holds no modes, FRFs or moments.
+    """
+    source = str(campaign.path or campaign.name)
+    found = _mode_table(campaign, count)
+    if found is None and campaign.moments is not None:
+        m = campaign.moments.sort_values("mode")
+        if count is not None:
+            m = m[m["mode"] <= count]
+        return MeasuredModes(m["mean_hz"].to_numpy()[None, :], modes=m["mode"].to_numpy(),
+                             published_std_hz=m["std_hz"].to_numpy(), tests_count=len(campaign.test_ids) or 9,
+                             source=source + "/moments.csv")
+    if found is None:
+        raise CampaignError(f"{source}: holds no modes, FRFs or moments to {purpose}")
+    table, source = found
+    wide = _wide(campaign, table, "frequency_hz", count)
+    damping = _wide(campaign, table, "damping_ratio", count).to_numpy(float) if "damping_ratio" in table else None
+    return MeasuredModes(wide.to_numpy(float), modes=wide.columns.to_numpy(), damping_ratio=damping,
+                         tests=tuple(wide.index), amplitude=amplitude_of_tests(campaign), source=source)
+
+
+def frequency_data(campaign: Campaign, count: int | None = None) -> FrequencyData:
+    """The campaign's measured eigenfrequencies for identification (`measured_modes`)."""
+    m = measured_modes(campaign, count, "identify from")
+    if m.published:
+        return FrequencyData(m.modes, m.mean_hz, m.std_hz, source=m.source)
+    return FrequencyData.from_tests(m.tests, m.modes, m.frequency_hz, m.source)
+
+
+def modal_data(campaign: Campaign, count: int | None = None) -> ModalData:
+    """The campaign's modes for the diagnosis (`measured_modes`)."""
+    m = measured_modes(campaign, count, "diagnose")
+    if m.published:
+        return ModalData(m.frequency_hz, std_hz=m.std_hz, tests_count=m.tests_count, modes=m.modes)
+    return ModalData(m.frequency_hz, m.damping_ratio, m.amplitude, modes=m.modes)

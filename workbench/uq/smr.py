@@ -48,9 +48,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.integrate import quad
 
-from .assembly import joint_energies
-from .modal import Modes, model_modes
-from .stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule
+from workbench.model.assembly import joint_energies
+from workbench.model.modal import Modes, model_modes
+from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule
 
 __all__ = [
     "PROXIMITY_THRESHOLD",
@@ -98,7 +98,7 @@ class Sensitivities:
         """SMR2, adaptive and Pert2 differentiate the model itself: they need its nominal point."""
         if self.scale is not None and not np.allclose(self.scale, 1.0, rtol=0.0, atol=1e-12):
             raise ValueError("sensitivities computed at a joint scale gamma != 1 serve SMR1 only; for SMR2, "
-                             "adaptive and Pert2 move the model there with workbench.assembly.with_joint_scale")
+                             "adaptive and Pert2 move the model there with workbench.model.assembly.with_joint_scale")
 
 
 def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
@@ -106,7 +106,7 @@ def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensiti
 
     With ``gamma``, ``lambda_kj`` is relative to that point: right for SMR1, which needs only the
     nominal solve there. SMR2, adaptive and Pert2 refuse such sensitivities; give them the model
-    moved to that point instead (`workbench.assembly.with_joint_scale`).
+    moved to that point instead (`workbench.model.assembly.with_joint_scale`).
     """
     modes = model_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
     rest, joints = joint_energies(model, modes.shapes)
@@ -317,7 +317,7 @@ def smr2(model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed
     """SMR2 (eq. 6-7) on every mode: first-order eigenvectors, eigenvalue as a Rayleigh quotient.
 
     ``rayleigh=False`` evaluates eq. (6) as printed (``phi^T K(gamma) phi``, unnormalised).
-    ``seed`` only matters above `workbench.stochastic.TENSOR_LIMIT` random joints (QMC rule).
+    ``seed`` only matters above `workbench.uq.stochastic.TENSOR_LIMIT` random joints (QMC rule).
     """
     _check(model, joints)
     sens = sens or sensitivities(model, count)
@@ -391,7 +391,7 @@ def propagate(model, joints: JointModel, method: str, count: int = 10, samples: 
     if method == "pert2":
         return pert2(model, joints, count)
     if method == "mc":
-        from .stochastic import monte_carlo
+        from workbench.uq.stochastic import monte_carlo
 
         return monte_carlo(model, joints, count, samples, seed, workers, progress).moments
     raise ValueError(f"method: {method!r} is not one of {', '.join(METHODS)}")

@@ -4,8 +4,8 @@ Neither data set may be redistributed with the workbench: the functions read the
 wherever the user keeps them (``root``) and build the campaign in memory; `main` writes it with
 `write_campaign` to a directory outside the repository::
 
-    python -m workbench.campaign_import unesp ROOT OUT_DIR [--which Rand] [--channels accelerometers]
-    python -m workbench.campaign_import brake-reuss ROOT OUT_DIR [--control force]
+    python -m workbench.io.real_data unesp ROOT OUT_DIR [--which Rand] [--channels accelerometers]
+    python -m workbench.io.real_data brake-reuss ROOT OUT_DIR [--control force]
 
 UNESP-BERT (SHM Lab, UNESP Ilha Solteira; GitHub ``shm-unesp/DATASET_BOLTEDBEAM``, licence
 CC BY-NC-SA): a clamped two-bar aluminium beam with a two-bolt lap joint, driven by a shaker whose
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .campaign import FRF_COLUMNS, Campaign, CampaignError, Factor, write_campaign
-from .frame import Frame, FrameFileError, read_frame
+from workbench.io.campaign import FRF_COLUMNS, Campaign, CampaignError, Factor, write_campaign
+from workbench.model.frame import Frame, FrameFileError, read_frame
 
 __all__ = [
     "UNESP_TESTS",
@@ -49,7 +49,7 @@ __all__ = [
     "main",
 ]
 
-REPOSITORY = Path(__file__).resolve().parents[1]
+REPOSITORY = Path(__file__).resolve().parents[2]
 # which -> (folder under Data/T5Nm, excited band in Hz: lines outside it carry no excitation)
 UNESP_TESTS = {
     "Rand": ("Rand", (0.0, 110.0)),
@@ -308,12 +308,12 @@ def import_brake_reuss(root: str | Path, control: str = "force", frame: Frame | 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m workbench.campaign_import {unesp,brake-reuss} ROOT OUT_DIR``: write the campaign.
+    """``python -m workbench.io.real_data {unesp,brake-reuss} ROOT OUT_DIR``: write the campaign.
 
     Exits 0 on success, 2 with a one-line reason on standard error on bad input. OUT_DIR must lie
     outside the workbench repository (the licences forbid redistributing these data).
     """
-    parser = argparse.ArgumentParser(prog="python -m workbench.campaign_import",
+    parser = argparse.ArgumentParser(prog="python -m workbench.io.real_data",
                                      description="Import a real data set into a contract campaign directory.")
     sub = parser.add_subparsers(dest="dataset", required=True)
     unesp = sub.add_parser("unesp", help="UNESP-BERT bolted beam (LMS MAT files)")

@@ -1,7 +1,7 @@
 """Figures of the benchmarks and of the identification report: the only module that imports matplotlib.
 
 Plot functions take an ``ax`` and return it; figure functions return the figure. The numbers they
-draw are computed elsewhere (`workbench.workflow`, `workbench.smr`, `workbench.prediction`);
+draw are computed elsewhere (`workbench.workflow.study`, `workbench.uq.smr`, `workbench.uq.prediction`);
 `figure_png` and `save_figure` encode a figure and close it. Agg backend, never ``plt.show()``.
 """
 
@@ -131,7 +131,7 @@ def frf_overlay_figure(sets: Mapping[object, object], ncols: int = 2):
 
     Parameters
     ----------
-    sets : test id -> `workbench.modal.FRFSet` (sensors in the same order in every test).
+    sets : test id -> `workbench.model.modal.FRFSet` (sensors in the same order in every test).
     """
     tests = list(sets)
     first = sets[tests[0]]
@@ -157,7 +157,7 @@ def nyquist_figure(panels: Sequence[object], ncols: int = 5):
 
     Parameters
     ----------
-    panels : `workbench.workflow.NyquistData`, one per mode.
+    panels : `workbench.workflow.study.NyquistData`, one per mode.
     """
     fig, axes = _grid(len(panels), ncols, (2.5, 2.5))
     for p, ax in zip(panels, axes):
@@ -209,8 +209,8 @@ def posterior_figure(posterior, az) -> object:
 
     Parameters
     ----------
-    posterior : `workbench.bayes.Posterior` with its ``idata``.
-    az : the arviz module (imported quietly by `workbench.bayes`).
+    posterior : `workbench.identify.bayes.Posterior` with its ``idata``.
+    az : the arviz module (imported quietly by `workbench.identify.bayes`).
     """
     post = posterior.idata.posterior
     groups = posterior.groups
@@ -240,7 +240,7 @@ def plot_frf_band(ax, band, sensor: int, measured: Mapping[object, object] | Non
 
     Parameters
     ----------
-    band : `workbench.prediction.FRFBand`.
+    band : `workbench.uq.prediction.FRFBand`.
     sensor : row of ``band`` (frame order).
     measured : test id -> measured `FRFSet` with the same sensors, or None.
     window : (f_lo, f_hi) Hz to zoom on, or None for the whole band.
@@ -281,7 +281,7 @@ def band_figure(band, measured: Mapping[object, object] | None = None, ncols: in
 
 def band_zoom_figure(band, measured: Mapping[object, object] | None, windows: Sequence[tuple[float, float, int]],
                      ncols: int = 5):
-    """The band around each mode (`workbench.workflow.mode_windows`: window and sensor), one panel each."""
+    """The band around each mode (`workbench.workflow.study.mode_windows`: window and sensor), one panel each."""
     fig, axes = _grid(len(windows), ncols, (2.6, 2.3))
     for k, (ax, (lo, hi, sensor)) in enumerate(zip(axes, windows)):
         plot_frf_band(ax, band, sensor, measured, f"mode {k + 1}, {band.sensors[sensor]}", (lo, hi), log=False)

@@ -25,11 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from .campaign import Factor, modal_data
-from .diagnosis import diagnose, members_at
-from .effects import EFFECTS, Effect
-from .frame import Frame, member_length
-from .rig import JointLaw, RigSettings, simulate_campaign
+from workbench.io.campaign import Factor
+from workbench.workflow.measured import modal_data
+from workbench.diagnose.diagnosis import diagnose, members_at
+from workbench.rig.effects import EFFECTS, Effect
+from workbench.model.frame import Frame, member_length
+from workbench.rig.simulate import JointLaw, RigSettings, simulate_campaign
 
 __all__ = ["CASE_SETTINGS", "draw_effect", "case_campaign", "CaseResult", "run_case", "summarise"]
 
@@ -144,7 +145,7 @@ def _place_right(frame: Frame, effect: Effect, where: str | None) -> bool | None
 
 def run_case(frame: Frame, kind: str, seed: int) -> CaseResult:
     """Draw, simulate, diagnose blind (campaign only), score."""
-    from .diagnosis import diagnosis_record
+    from workbench.diagnose.diagnosis import diagnosis_record
 
     rng = np.random.default_rng(seed)
     effect = draw_effect(frame, kind, rng)

@@ -1,7 +1,7 @@
 """Outputs of the gap diagnosis: ``diagnosis.json``, its readable ``index.html``, and the blind validation.
 
 `diagnose_campaign` is ``workbench diagnose``; `validate` is ``workbench validate-diagnosis``. The
-numbers come from `workbench.diagnosis` and `workbench.rig_cases`; this module draws and writes.
+numbers come from `workbench.diagnose.diagnosis` and `workbench.workflow.rig_cases`; this module draws and writes.
 """
 
 from __future__ import annotations
@@ -14,16 +14,17 @@ from typing import Any
 
 import numpy as np
 
-from .campaign import load_campaign, modal_data
-from .diagnosis import Diagnosis, diagnose, diagnosis_record
-from .outputs import csv_text, json_text, write_outputs
-from .report import CSS, html_figure, html_table
+from workbench.io.campaign import load_campaign
+from workbench.workflow.measured import modal_data
+from workbench.diagnose.diagnosis import Diagnosis, diagnose, diagnosis_record
+from workbench.io.outputs import csv_text, json_text, write_outputs
+from workbench.report.page import CSS, html_figure, html_table
 
 __all__ = ["diagnose_campaign", "diagnosis_html", "validate", "validation_text"]
 
 def _figures(d: Diagnosis) -> list[str]:
     """The page's figures as embedded HTML: residuals, localisation, ranking."""
-    from .plots import plt
+    from workbench.report.plots import plt
 
     out = []
     modes = np.asarray(d.modes)
@@ -145,9 +146,9 @@ def diagnose_campaign(path: str | Path, out: str | Path, force: bool = False, co
 
 def validate(cases: int, seed: int, frame_path: str | Path, out: str | Path | None = None, force: bool = False,
              progress: bool = False) -> dict:
-    """``workbench validate-diagnosis``: ``cases`` blind cases from ``seed`` (`workbench.rig_cases`)."""
-    from .frame import read_frame
-    from .rig_cases import CASE_TYPES, run_case, summarise
+    """``workbench validate-diagnosis``: ``cases`` blind cases from ``seed`` (`workbench.workflow.rig_cases`)."""
+    from workbench.model.frame import read_frame
+    from workbench.workflow.rig_cases import CASE_TYPES, run_case, summarise
 
     frame = read_frame(frame_path)
     kinds = [CASE_TYPES[i % len(CASE_TYPES)] for i in range(cases)]

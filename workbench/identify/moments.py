@@ -5,7 +5,7 @@ Bayesian): the measured frequencies of each test and mode, or only their publish
 `JointGroups` says which joints share one stochastic model (the frame file's ``group``: the
 paper's vertical-beam and horizontal-beam joints).
 
-Two estimators of the paper live here (the Bayesian one is `workbench.bayes`):
+Two estimators of the paper live here (the Bayesian one is `workbench.identify.bayes`):
 
 `nominal_fit`, eq. (1): the group moduli minimising ``sum_k (f_k^exp - f_k^EF)^2`` by Nelder-Mead
 on the measured means. Unknowns are the log-moduli; the bounds are Nelder-Mead's own (scipy
@@ -29,7 +29,7 @@ Scaling only the nominal solve (``smr.sensitivities(model, count, gamma)``) is r
 SMR2 (adaptive's refinement) builds its eigenvector derivatives and reduced matrices from the
 unscaled model and then mixes two operating points (7 % mean error, 74 % std error on the one-bolt
 frame at 11.5 GPa against a 24 GPa file): the copy avoids it. `tests/test_identify.py` checks the
-copy against a re-assembled frame and the SMR on it against `workbench.stochastic.quadrature_reference`.
+copy against a re-assembled frame and the SMR on it against `workbench.uq.stochastic.quadrature_reference`.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, linear_sum_assignment, minimize, nnls
 
-from .assembly import with_joint_scale
+from workbench.model.assembly import with_joint_scale
 
 __all__ = ["FrequencyData", "JointGroups", "joint_groups", "model_at_moduli", "NominalFit", "nominal_fit",
            "MomentFit", "moment_matching", "identification_record", "DEFAULT_START_COV", "SCAN_POINTS"]
@@ -219,7 +219,7 @@ def _joint_scale(model, groups: JointGroups, mean_pa: np.ndarray) -> np.ndarray:
 def model_at_moduli(model, groups: JointGroups, mean_pa) -> object:
     """A copy of ``model`` whose joint zones are at the group moduli ``mean_pa`` (n_groups,), Pa.
 
-    `workbench.assembly.with_joint_scale` at the groups' scale: exactly the model assembled with
+    `workbench.model.assembly.with_joint_scale` at the groups' scale: exactly the model assembled with
     those joint moduli. The copy's ``gamma`` is then relative to the candidate means, as the
     SMR's Gamma laws of eq. (9) are.
     """
@@ -305,7 +305,7 @@ def nominal_fit(model, data: FrequencyData, groups: JointGroups | None = None, s
 
     Parameters
     ----------
-    model : assembled `workbench.assembly.Model`; its joints' file moduli are only a start.
+    model : assembled `workbench.model.assembly.Model`; its joints' file moduli are only a start.
     data : measured frequencies; ``data.mean_hz`` are fitted, paired with model modes ``data.modes``.
     groups : joints sharing one modulus (default: the frame's groups).
     start_pa : (n_groups,) start moduli, Pa (default: the frame file's).
@@ -346,7 +346,7 @@ def nominal_fit(model, data: FrequencyData, groups: JointGroups | None = None, s
         count = min(int(modes.max()) + EXTRA_MODES, model.size - 2)
     else:
         raise ValueError(f"pairing: {pairing!r} is not one of order, mac")
-    from .modal import mac, model_modes
+    from workbench.model.modal import mac, model_modes
 
     calls = [0]
 
@@ -434,8 +434,8 @@ class MomentFit:
 
 def _forward(model, groups: JointGroups, model_modes: np.ndarray, method: str):
     """``(log mean, log cov) -> (mean_hz, std_hz)`` of the paired model modes by the SMR."""
-    from . import smr
-    from .stochastic import JointModel
+    from workbench.uq import smr
+    from workbench.uq.stochastic import JointModel
 
     propagate = {"adaptive": smr.adaptive, "smr1": smr.smr1, "smr2": smr.smr2}[method]
     count = int(model_modes.max())
@@ -453,7 +453,7 @@ def _forward(model, groups: JointGroups, model_modes: np.ndarray, method: str):
 def _linear_cov_start(model, groups: JointGroups, mean_pa: np.ndarray, model_modes: np.ndarray,
                       delta: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """First-order CoVs: ``delta_k^2 = sum_g cov_g^2 sum_(j in g) (lambda_kj / 2 lambda_k)^2``, by NNLS."""
-    from .smr import sensitivities
+    from workbench.uq.smr import sensitivities
 
     sens = sensitivities(model_at_moduli(model, groups, mean_pa), int(model_modes.max()))
     k = model_modes - 1
@@ -535,7 +535,7 @@ def moment_matching(model, data: FrequencyData, groups: JointGroups | None = Non
 
     Parameters
     ----------
-    model : assembled `workbench.assembly.Model`; its joints' file moduli are only a start.
+    model : assembled `workbench.model.assembly.Model`; its joints' file moduli are only a start.
     data : measured moments (``mean_hz``, ``std_hz``) of modes ``data.modes`` (paired by order, or
         by MAC through `nominal_fit`), and per-test frequencies when the campaign has them.
     groups : joints sharing one stochastic model (default: the frame's groups).
@@ -640,7 +640,7 @@ def identification_record(campaign_name: str, method: str, frame, fit, modes_use
     """The ``identification.json`` structure of CONTRACTS.md section 3.
 
     ``fit`` either has ``joint_records()`` (the ``joints`` block itself, e.g. a Bayesian
-    `workbench.bayes.Posterior`) or ``groups`` (`JointGroups` of ``frame``), ``mean_pa`` and ``cov``
+    `workbench.identify.bayes.Posterior`) or ``groups`` (`JointGroups` of ``frame``), ``mean_pa`` and ``cov``
     ((n_groups,) each) and optionally ``mean_ci95`` / ``cov_ci95`` ((n_groups, 2) or None), as a
     `MomentFit`. Every joint of a group gets its group's values; joints are keyed by name, in the
     frame's order.

@@ -1,6 +1,6 @@
 """A surrogate of a frame's eigenfrequencies over its joint moduli: a Chebyshev table.
 
-The Bayesian likelihood (`workbench.bayes`) evaluates the first eigenfrequencies at every test's
+The Bayesian likelihood (`workbench.identify.bayes`) evaluates the first eigenfrequencies at every test's
 joint moduli for every walker: tens of thousands of points per identification. A tensor
 Chebyshev interpolant in ``z = log(Y / Y0)`` over the range that matters, built from exact,
 MAC-tracked eigen-solutions at Chebyshev-Gauss nodes (or from SMR2 Rayleigh quotients), evaluates
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import with_joint_scale
-from .modal import model_modes
-from .smr import sensitivities, smr2_frequencies
-from .stochastic import tracked_frequencies
+from workbench.model.assembly import with_joint_scale
+from workbench.model.modal import model_modes
+from workbench.uq.smr import sensitivities, smr2_frequencies
+from workbench.uq.stochastic import tracked_frequencies
 
 __all__ = ["TABLE_DEGREE", "ForwardTable", "model_at", "frequencies_at", "forward_table"]
 
