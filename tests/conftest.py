@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -41,3 +42,21 @@ CLAMP = {"ux": "fixed", "uy": "fixed", "rz": "fixed"}
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20201206)
+
+
+def shared_path(*parts: str) -> Path:
+    """``../shared/<parts>``; a test that needs it fails when it is missing (CI always has ../shared),
+    or skips when ``WORKBENCH_ALLOW_NO_SHARED=1`` says a checkout without it is meant."""
+    path = SHARED.joinpath(*parts)
+    if not path.exists():
+        if os.environ.get("WORKBENCH_ALLOW_NO_SHARED") == "1":
+            pytest.skip(f"{path} is absent (WORKBENCH_ALLOW_NO_SHARED=1)")
+        pytest.fail(f"{path} is missing: this test needs ../shared beside the repository; set "
+                    "WORKBENCH_ALLOW_NO_SHARED=1 to skip such tests", pytrace=False)
+    return path
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """``@pytest.mark.shared("data/real/...")``: the test needs that path under ../shared (`shared_path`)."""
+    for marker in item.iter_markers(name="shared"):
+        shared_path(*marker.args)

@@ -9,15 +9,12 @@ import pytest
 
 from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial
 
-from conftest import SHARED
+from conftest import shared_path
 
-PAPER = SHARED / "paper"
 
 
 def paper_table(name: str) -> list[dict[str, str]]:
-    path = PAPER / name
-    if not path.exists():
-        pytest.skip("../shared is absent")
+    path = shared_path("paper", name)
     with open(path, newline="") as f:
         return [{k: v for k, v in row.items() if k != "test_id"} for row in csv.DictReader(f)]
 

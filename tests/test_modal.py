@@ -11,9 +11,8 @@ from workbench.model.frame import read_frame
 from workbench.model.generate import multibay_for_dofs, multibay_frame
 from workbench.model.modal import mac, model_modes, solve_modes
 
-from conftest import SHARED
+from conftest import shared_path
 
-EXAMPLE = SHARED / "examples" / "independent-two-test-campaign" / "frame.toml"
 
 
 @pytest.fixture(scope="module")
@@ -130,7 +129,7 @@ def test_singular_model_is_refused():
 
 
 def test_sensor_on_a_fixed_dof_is_named():
-    model = assemble(read_frame(EXAMPLE)) if EXAMPLE.exists() else pytest.skip("../shared is absent")
+    model = assemble(read_frame(shared_path("examples", "independent-two-test-campaign", "frame.toml")))
     with pytest.raises(ValueError, match="ux at point 'base_left' is a fixed support dof"):
         model.dof("base_left", "ux")
 

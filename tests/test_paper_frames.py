@@ -13,7 +13,7 @@ from workbench.model.assembly import assemble
 from workbench.model.frame import read_frame
 from workbench.model.modal import model_modes
 
-from conftest import REPO, SHARED
+from conftest import REPO, shared_path
 
 FRAMES = REPO / "frames"
 JOINTS = {
@@ -44,9 +44,7 @@ def test_joints_lower_frequencies_below_the_monolithic_frame():
 
 
 def test_calibrated_one_bolt_frame_reproduces_table2():
-    path = SHARED / "paper" / "table2_single_bolt_nominal.csv"
-    if not path.exists():
-        pytest.skip("../shared is absent")
+    path = shared_path("paper", "table2_single_bolt_nominal.csv")
     with open(path, newline="") as f:
         measured = np.array([float(r["f_exp_hz"]) for r in csv.DictReader(f)])
     frame = read_frame(FRAMES / "one_bolt_vertical.toml")

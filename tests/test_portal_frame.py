@@ -6,13 +6,12 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from workbench.model.assembly import assemble
 from workbench.model.frame import parse_frame, read_frame
 from workbench.model.modal import model_modes
 
-from conftest import SHARED
+from conftest import shared_path
 
 try:
     from tests.reference.dynamic_stiffness import natural_frequencies_hz, portal_frame_reference
@@ -58,9 +57,7 @@ def test_portal_with_masses_and_springs_against_exact():
 
 
 def test_frequencies_computed_by_another_program_for_its_frame():
-    example = SHARED / "examples"
-    if not example.exists():
-        pytest.skip("../shared is absent")
+    example = shared_path("examples")
     truth = json.loads((example / "independent-two-test-campaign.truth.json").read_text())
     model = assemble(read_frame(example / "independent-two-test-campaign" / "frame.toml"))
     got = model_modes(model, 10).frequency_hz

@@ -11,11 +11,13 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
+from tqdm import tqdm
 
 from workbench import __version__
 from workbench.model.assembly import assemble
 from workbench.model.frame import read_frame
 from workbench.model.modal import model_modes
+from workbench.progress import Progress
 from workbench.io.outputs import OutputExistsError, csv_text, json_text, write_outputs
 
 __all__ = ["main"]
@@ -24,6 +26,27 @@ __all__ = ["main"]
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line and exit 2, as for any bad input
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class _Bars:
+    """tqdm bars on standard error for the `workbench.progress` callbacks of the library, one per label."""
+
+    def __init__(self) -> None:
+        self.bars: dict[str, tqdm] = {}
+
+    def __call__(self, label: str, done: int, total: int) -> None:
+        bar = self.bars.get(label)
+        if bar is None:
+            bar = self.bars[label] = tqdm(total=total, desc=label, leave=False)
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+            del self.bars[label]
+
+
+def _progress() -> Progress | None:
+    """Bars when standard error is a terminal; nothing in pipes, logs and tests."""
+    return _Bars() if sys.stderr.isatty() else None
 
 
 def _positive_int(text: str) -> int:
@@ -52,7 +75,7 @@ def _propagate(args: argparse.Namespace) -> str:
         raise ValueError(f"{args.frame}: joints: no joint has a cov > 0, so nothing varies")
     start = time.perf_counter()
     moments = propagate(model, joints, args.method, args.count, args.samples, args.seed, args.workers,
-                        progress=args.method == "mc" and sys.stderr.isatty())
+                        progress=_progress() if args.method == "mc" else None)
     wall = time.perf_counter() - start
     table = csv_text(["mode", "mean_hz", "std_hz"],
                      ((k + 1, float(m), float(s)) for k, (m, s) in enumerate(zip(moments.mean_hz, moments.std_hz))))
@@ -117,7 +140,7 @@ def _identify(args: argparse.Namespace) -> str:
 
         from workbench.identify.bayes import bayes_identify, save_posterior
 
-        fit = bayes_identify(model, data, seed=args.seed, progress=sys.stderr.isatty())
+        fit = bayes_identify(model, data, seed=args.seed, progress=_progress())
         with tempfile.TemporaryDirectory() as tmp:  # through write_outputs: all files or none
             files["posterior.nc"] = save_posterior(fit, tmp).read_bytes()
     wall = time.perf_counter() - start
@@ -151,7 +174,7 @@ def _report(args: argparse.Namespace) -> str:
         raise OutputExistsError(f"{Path(args.out) / 'index.html'}: exists; pass --force to replace it")
     run = report_run(args.campaign, joints_from=args.joints_from or (), seed=args.seed, samples=args.samples,
                      bayes=not args.no_bayes, bayes_steps=args.steps, workers=args.workers,
-                     progress=sys.stderr.isatty(), notify=_notify)
+                     progress=_progress(), notify=_notify)
     return f"report of {run.studies[0].name!r} written to {_write_report(run, args.out, args.force, start)}"
 
 
@@ -163,7 +186,7 @@ def _demo(args: argparse.Namespace) -> str:
 
     start = time.perf_counter()
     run = demo_run(args.campaigns, seed=args.seed, samples=args.samples, bayes_steps=args.steps,
-                   workers=args.workers, progress=sys.stderr.isatty(), notify=_notify)
+                   workers=args.workers, progress=_progress(), notify=_notify)
     # the demo's report is the main job's output: it replaces its own index.html on every run
     return f"demo report written to {_write_report(run, args.out, True, start)}"
 
@@ -184,7 +207,7 @@ def _diagnose(args: argparse.Namespace) -> str:
 def _validate_diagnosis(args: argparse.Namespace) -> str:
     from workbench.report.diagnosis_page import validate, validation_text
 
-    summary = validate(args.cases, args.seed, args.frame, args.out, args.force, progress=sys.stderr.isatty())
+    summary = validate(args.cases, args.seed, args.frame, args.out, args.force, progress=_progress())
     print(validation_text(summary))
     return f"{summary['cases']} blind cases" + (f"; written to {args.out}" if args.out else "")
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import warnings
 from collections.abc import Mapping, Sequence
+from typing import Any
 from pathlib import Path
 
 import matplotlib
@@ -17,6 +18,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from workbench.model.modal import FRFSet  # noqa: E402
+from workbench.uq.prediction import FRFBand  # noqa: E402
+from workbench.workflow.measured import NyquistData  # noqa: E402
 
 __all__ = ["plt", "plot_moment_errors", "moment_error_figure", "save_figure", "figure_png", "frf_overlay_figure",
            "plot_frf_band", "band_figure", "band_zoom_figure", "nyquist_figure", "forest_figure", "posterior_figure",
@@ -30,7 +37,7 @@ _MEASURED = "0.35"
 
 # ------------------------------------------------------------------------------ Figure 11 style
 
-def plot_moment_errors(ax, errors_percent: Mapping[str, np.ndarray], title: str = "",
+def plot_moment_errors(ax: Axes, errors_percent: Mapping[str, np.ndarray], title: str = "",
                        band_percent: np.ndarray | None = None, ylabel: str = "relative error (%)"):
     """Grouped bars of relative errors per mode for several methods (paper Figure 11 style).
 
@@ -75,7 +82,7 @@ def moment_error_figure(panels: Mapping[str, tuple[Mapping[str, np.ndarray], Map
     return fig
 
 
-def save_figure(fig, path: str | Path) -> Path:
+def save_figure(fig: Figure, path: str | Path) -> Path:
     """Write ``fig`` as PNG (whole or not at all) and close it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -86,7 +93,7 @@ def save_figure(fig, path: str | Path) -> Path:
     return path
 
 
-def figure_png(fig, dpi: int = 90) -> bytes:
+def figure_png(fig: Figure, dpi: int = 90) -> bytes:
     """The figure as PNG bytes (for embedding in a report); the figure is closed."""
     buffer = io.BytesIO()
     try:
@@ -108,7 +115,7 @@ def _grid(count: int, ncols: int, panel: tuple[float, float]):
 _UNITS = {"accelerance": "m/s$^2$/N", "mobility": "m/s/N", "receptance": "m/N"}
 
 
-def _frf_axes(ax, quantity: str, title: str = "", log: bool = True):
+def _frf_axes(ax: Axes, quantity: str, title: str = "", log: bool = True):
     if log:
         ax.set_yscale("log")
     ax.set_xlabel("frequency (Hz)")
@@ -126,7 +133,7 @@ def _positive(frequency_hz: np.ndarray, values: np.ndarray):
 
 # ---------------------------------------------------------------------------- measured FRFs
 
-def frf_overlay_figure(sets: Mapping[object, object], ncols: int = 2):
+def frf_overlay_figure(sets: Mapping[object, FRFSet], ncols: int = 2) -> Figure:
     """Measured ``|H|`` of every test overlaid, one panel per sensor (log scale against Hz).
 
     Parameters
@@ -152,7 +159,7 @@ def frf_overlay_figure(sets: Mapping[object, object], ncols: int = 2):
 
 # ------------------------------------------------------------------------------ circle fits
 
-def nyquist_figure(panels: Sequence[object], ncols: int = 5):
+def nyquist_figure(panels: Sequence[NyquistData], ncols: int = 5) -> Figure:
     """Nyquist plots (mobility) of one circle fit per mode: measured points and the fitted circle.
 
     Parameters
@@ -177,7 +184,7 @@ def nyquist_figure(panels: Sequence[object], ncols: int = 5):
 
 # -------------------------------------------------------------------------------- joint models
 
-def forest_figure(rows: Sequence[Mapping[str, object]]):
+def forest_figure(rows: Sequence[Mapping[str, Any]]) -> Figure:
     """Joint models of several estimators with their 95 % intervals (forest plot).
 
     Parameters
@@ -233,7 +240,7 @@ def posterior_figure(posterior, az) -> object:
 
 # ---------------------------------------------------------------------------- stochastic FRF
 
-def plot_frf_band(ax, band, sensor: int, measured: Mapping[object, object] | None = None, title: str = "",
+def plot_frf_band(ax: Axes, band: FRFBand, sensor: int, measured: Mapping[object, FRFSet] | None = None, title: str = "",
                   window: tuple[float, float] | None = None, log: bool = True):
     """One sensor's stochastic FRF (Figures 12, 14, 16): envelope, 5-95 % band and mean of ``|H|``
     over the joint samples, over the measured ``|H|`` of every test (grey).
@@ -270,7 +277,7 @@ def plot_frf_band(ax, band, sensor: int, measured: Mapping[object, object] | Non
     return _frf_axes(ax, band.quantity, title or f"sensor {band.sensors[sensor]}", log)
 
 
-def band_figure(band, measured: Mapping[object, object] | None = None, ncols: int = 2):
+def band_figure(band: FRFBand, measured: Mapping[object, FRFSet] | None = None, ncols: int = 2) -> Figure:
     """`plot_frf_band` for every sensor of the band, one panel each."""
     fig, axes = _grid(len(band.sensors), ncols, (6.2, 2.9))
     for s, ax in enumerate(axes):
@@ -279,7 +286,7 @@ def band_figure(band, measured: Mapping[object, object] | None = None, ncols: in
     return fig
 
 
-def band_zoom_figure(band, measured: Mapping[object, object] | None, windows: Sequence[tuple[float, float, int]],
+def band_zoom_figure(band: FRFBand, measured: Mapping[object, FRFSet] | None, windows: Sequence[tuple[float, float, int]],
                      ncols: int = 5):
     """The band around each mode (`workbench.workflow.study.mode_windows`: window and sensor), one panel each."""
     fig, axes = _grid(len(windows), ncols, (2.6, 2.3))
@@ -293,7 +300,7 @@ def band_zoom_figure(band, measured: Mapping[object, object] | None, windows: Se
     return fig
 
 
-def plot_frequency_spread(ax, predicted_samples_pct: np.ndarray, predicted_std_pct: np.ndarray,
+def plot_frequency_spread(ax: Axes, predicted_samples_pct: np.ndarray, predicted_std_pct: np.ndarray,
                           measured_pct: np.ndarray, title: str = ""):
     """Per mode, the predicted and the measured frequency spread, in % of the predicted mean.
 
@@ -325,7 +332,7 @@ def plot_frequency_spread(ax, predicted_samples_pct: np.ndarray, predicted_std_p
     return ax
 
 
-def prediction_figure(band, measured: Mapping[object, object], sensor: int, predicted_samples_pct: np.ndarray,
+def prediction_figure(band: FRFBand, measured: Mapping[object, FRFSet], sensor: int, predicted_samples_pct: np.ndarray,
                       predicted_std_pct: np.ndarray, measured_pct: np.ndarray):
     """Section 5 side by side: the predicted band at one sensor over the measured FRFs (left),
     and the predicted against the measured frequency spread per mode (right)."""

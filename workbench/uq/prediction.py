@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from workbench.model.frame import Frame
+from workbench.progress import Progress, report
 from workbench.model.modal import QUANTITIES, Modes, frame_frf, modal_superposition, model_modes, solve_modes
 from workbench.uq.stochastic import FrequencyMoments, JointModel, track_modes
 
@@ -104,7 +105,7 @@ def _summed_modes(model, top_hz: float, modes: int | None):
 
 def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio: np.ndarray, *,
              quantity: str = "accelerance", samples: int = 500, seed: int = 0, modes: int | None = None,
-             progress: bool = False) -> FRFBand:
+             progress: Progress | None = None) -> FRFBand:
     """Mean, envelope and 5-95 % band of the FRF magnitude under random joints (Figures 12, 14, 16).
 
     Monte Carlo over the normalised joint moduli ``gamma_j ~ Gamma(1 / cov_j^2, cov_j^2)`` (eq.
@@ -124,7 +125,7 @@ def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio:
     samples : number of joint draws (at least 2; the paper uses 1 000 to 10 000).
     seed : seeds the draws; the same seed gives identical arrays.
     modes : number of modes summed; default those up to ``frequency_hz.max()`` and 4 more.
-    progress : show a progress bar over the samples on standard error.
+    progress : called after each sample (`workbench.progress`).
 
     Returns
     -------
@@ -158,16 +159,12 @@ def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio:
     natural = np.empty((samples, count))
     constants = np.empty((samples, responses.size, count))
     solved = min(count + TRACKING_MODES, model.size - 2)
-    draws = gammas
-    if progress:
-        from tqdm import tqdm
-
-        draws = tqdm(gammas, desc="FRF band", unit="sample", leave=False)
-    for s, gamma in enumerate(draws):
+    for s, gamma in enumerate(gammas):
         sample = solve_modes(model.stiffness(gamma), model.mass, solved)
         index, _ = track_modes(nominal, sample, model.mass)
         natural[s] = sample.frequency_hz[index]
         constants[s] = sample.shapes[responses][:, index] * sample.shapes[excitation, index]
+        report(progress, "FRF band", s + 1, samples)
 
     # Percentiles need every sample of a line at once: float32 magnitudes (7 significant digits,
     # far below the Monte Carlo error) over as many lines as the memory budget allows.

@@ -49,6 +49,7 @@ import scipy.sparse.linalg as spla
 from scipy.integrate import quad
 
 from workbench.model.assembly import joint_energies
+from workbench.progress import Progress
 from workbench.model.modal import Modes, model_modes
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule
 
@@ -380,7 +381,7 @@ METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
 
 
 def propagate(model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
-              workers: int = 1, progress: bool = False) -> FrequencyMoments:
+              workers: int = 1, progress: Progress | None = None) -> FrequencyMoments:
     """Frequency moments by ``method`` (one of `METHODS`); ``samples`` and ``workers`` are for ``mc``."""
     if method == "smr1":
         return smr1(model, joints, count)

@@ -19,6 +19,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
 
+from workbench.progress import Progress, report
 from workbench.model.modal import Modes, model_modes, solve_modes
 
 __all__ = ["JointModel", "joint_model", "FrequencyMoments", "MonteCarloResult", "monte_carlo", "track_modes",
@@ -260,7 +261,7 @@ def quadrature_reference(model, joints: JointModel, count: int = 10, points: int
 
 
 def monte_carlo(model, joints: JointModel, count: int = 10, samples: int = 10_000, seed: int = 0,
-                workers: int = 1, progress: bool = False, extra_modes: int = 4,
+                workers: int = 1, progress: Progress | None = None, extra_modes: int = 4,
                 chunk: int = 100) -> MonteCarloResult:
     """Monte Carlo moments of the first ``count`` eigenfrequencies: one exact eigen-solve per sample.
 
@@ -272,7 +273,7 @@ def monte_carlo(model, joints: JointModel, count: int = 10, samples: int = 10_00
     samples : number of joint draws.
     seed : seeds the draws; the same seed gives the same numbers, whatever ``workers``.
     workers : worker processes (1 runs in this process).
-    progress : show a progress bar on standard error.
+    progress : called after each chunk of samples (`workbench.progress`).
     extra_modes : modes solved beyond ``count`` so that a mode that moves up can still be tracked.
     chunk : samples per task.
 
@@ -287,25 +288,19 @@ def monte_carlo(model, joints: JointModel, count: int = 10, samples: int = 10_00
     nominal = model_modes(model, count)
     gamma = joints.sample(samples, np.random.default_rng(seed))
     tasks = [(model, nominal, gamma[i:i + chunk], extra_modes) for i in range(0, samples, chunk)]
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=samples, desc="Monte Carlo", unit="sample", leave=False)
-    results = []
+    results: list[tuple[np.ndarray, np.ndarray]] = []
+    done = 0
     if workers > 1:
         with ProcessPoolExecutor(max_workers=min(workers, os.cpu_count() or 1)) as pool:
             for task, result in zip(tasks, pool.map(_worker_chunk, tasks)):
                 results.append(result)
-                if bar is not None:
-                    bar.update(len(task[2]))
+                done += len(task[2])
+                report(progress, "Monte Carlo", done, samples)
     else:
         for task in tasks:
             results.append(tracked_frequencies(*task))
-            if bar is not None:
-                bar.update(len(task[2]))
-    if bar is not None:
-        bar.close()
+            done += len(task[2])
+            report(progress, "Monte Carlo", done, samples)
     freqs = np.concatenate([r[0] for r in results])
     worst = np.concatenate([r[1] for r in results])
     moments = FrequencyMoments(freqs.mean(axis=0), freqs.std(axis=0, ddof=1), "mc", nominal.frequency_hz)

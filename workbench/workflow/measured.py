@@ -26,6 +26,7 @@ from workbench.diagnose.diagnosis import ModalData
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.moments import FrequencyData
 from workbench.io.campaign import Campaign, CampaignError, amplitude_of_tests, frf_set, load_campaign
+from workbench.progress import Progress, report
 from workbench.model.modal import modal_superposition
 from workbench.uq.prediction import FRFBand
 
@@ -121,30 +122,21 @@ def load_and_extract(path: str | Path):
     return campaign, (extract_campaign(campaign) if campaign.frf is not None else None)
 
 
-def load_campaigns(paths: Sequence[str | Path], workers: int = 1, progress: bool = False) -> dict:
+def load_campaigns(paths: Sequence[str | Path], workers: int = 1, progress: Progress | None = None) -> dict:
     """`load_and_extract` of several campaigns, ``workers`` processes at a time (the circle fits
     of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given."""
     paths = list(dict.fromkeys(str(p) for p in paths))
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(paths), desc="circle fits", unit="campaign", leave=False)
     done = {}
     if workers > 1 and len(paths) > 1:
         with ProcessPoolExecutor(max_workers=min(workers, len(paths))) as pool:
             futures = {pool.submit(load_and_extract, p): p for p in paths}
             for future in as_completed(futures):
                 done[futures[future]] = future.result()
-                if bar is not None:
-                    bar.update()
+                report(progress, "circle fits", len(done), len(paths))
     else:
         for p in paths:
             done[p] = load_and_extract(p)
-            if bar is not None:
-                bar.update()
-    if bar is not None:
-        bar.close()
+            report(progress, "circle fits", len(done), len(paths))
     return {p: done[p] for p in paths}
 
 

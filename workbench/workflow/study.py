@@ -15,7 +15,7 @@ band are set against that frame's own measured FRFs and circle-fit frequencies (
 
 Each stage returns a frozen record that the report draws (`workbench.report.page`, `workbench.report.plots`).
 Random steps take the ``seed`` given and record it; ``notify`` receives one line per finished
-step (the command line prints it); ``progress`` turns on the tqdm bars of the long steps (Monte
+step (the command line prints it); ``progress`` (`workbench.progress`) follows the long steps (Monte
 Carlo, emcee, FRF band). This module imports neither pandas nor matplotlib: campaigns are loaded
 through `workbench.io.campaign`, imported where they are loaded.
 """
@@ -32,6 +32,7 @@ import numpy as np
 from workbench.model.assembly import assemble
 from workbench.identify.moments import FrequencyData, MomentFit, moment_matching
 from workbench.workflow.measured import Extraction, campaign_label, extract_campaign, frequency_axis, load_campaigns
+from workbench.progress import Progress
 from workbench.uq.prediction import FRFBand, FrequencyComparison, compare_frequencies, frame_with_joint_models, frf_band
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, MonteCarloResult, joint_model, monte_carlo, quadrature_reference
 
@@ -195,7 +196,7 @@ def _bayes_refusal(campaign, data: FrequencyData, bayes: bool) -> str:
 
 def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int = 0, samples: int = 1000,
                    bayes: bool = True, bayes_steps: int = 3000, bayes_burn: int | None = None, workers: int = 1,
-                   progress: bool = False, notify: Notify = None) -> Study:
+                   progress: Progress | None = None, notify: Notify = None) -> Study:
     """Identify and propagate one campaign (module notes).
 
     Parameters
@@ -210,7 +211,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     bayes : run the Bayesian identification where it applies; bayes_steps, bayes_burn : its
         kept and discarded steps per walker (burn-in default: a quarter of the kept steps, at most 500).
     workers : processes of the Monte Carlo reference.
-    progress : tqdm bars on the long steps (standard error); notify : one line per finished step.
+    progress : called as the long steps advance (`workbench.progress`); notify : one line per finished step.
     """
     from workbench.workflow.measured import frequency_data
 
@@ -316,7 +317,7 @@ class Prediction:
 
 
 def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, JointSource], *, seed: int = 0,
-                     samples: int = 1000, progress: bool = False, notify: Notify = None) -> Prediction:
+                     samples: int = 1000, progress: Progress | None = None, notify: Notify = None) -> Prediction:
     """Predict a multi-bolt campaign from joint models identified on other campaigns (section 5).
 
     Parameters
@@ -401,7 +402,7 @@ def identify_sources(loaded: Mapping[str, tuple], seed: int = 0) -> dict[str, Jo
 
 def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] = (), seed: int = 0,
                samples: int = 1000, bayes: bool = True, bayes_steps: int = 3000, workers: int = 1,
-               progress: bool = False, notify: Notify = None) -> Run:
+               progress: Progress | None = None, notify: Notify = None) -> Run:
     """`workbench report`: the study of one campaign and, with ``joints_from``, its section 5
     prediction from the joint models identified (moment matching) on those one-bolt campaigns."""
     start = time.perf_counter()
@@ -426,7 +427,7 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
 
 
 def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, bayes_steps: int = 2000,
-             workers: int = 2, progress: bool = False, notify: Notify = None) -> Run:
+             workers: int = 2, progress: Progress | None = None, notify: Notify = None) -> Run:
     """`workbench demo`: the paper's chain on the bundled campaigns (`DEMO_STUDIES`, `DEMO_BAYES`,
     `DEMO_PREDICTIONS`): identify the vertical and horizontal joint models on the one-bolt sweeps,
     then predict the two- and four-bolt frames with them (section 5).
