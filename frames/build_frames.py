@@ -37,6 +37,7 @@ REPO = HERE.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from workbench.io.outputs import write_frame  # noqa: E402
 from workbench.model.assembly import assemble  # noqa: E402
 from workbench.model.frame import (  # noqa: E402
     DofRef,
@@ -49,7 +50,6 @@ from workbench.model.frame import (  # noqa: E402
     Section,
     Sensor,
     Support,
-    write_frame,
 )
 from workbench.model.modal import model_modes  # noqa: E402
 

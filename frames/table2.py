@@ -18,7 +18,7 @@ from build_frames import (CONFIGURATIONS, HERE, TABLE2_JOINT_MODULUS, frequencie
                           with_joint_modulus)
 
 from workbench.model.assembly import assemble
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
 
 

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.model.frame import Frame, parse_frame
+from workbench.model.frame import Frame
+from workbench.model.frame_file import parse_frame
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"

@@ -1,6 +1,6 @@
 """Circle-fit extraction on the two real data sets (workbench.extraction.modes on workbench.io.real_data).
 
-The data are not in the repository: these tests skip when ``../shared/data/real`` is absent. They
+The data are not in the repository: these tests fail when ``../shared/data/real`` is absent (skip with WORKBENCH_ALLOW_NO_SHARED=1). They
 check what the data's authors report and what a modal extraction must at least get right:
 
 - UNESP-BERT (random excitation, six shaker levels 0.05-0.30 V, accelerometers): mode 2 (about
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from scipy.stats import spearmanr
 
-from conftest import SHARED
+from conftest import REPO, SHARED
 from workbench.io.campaign import frf_set
 from workbench.io.real_data import import_brake_reuss, import_unesp_bert
 from workbench.extraction.modes import extract_tests, find_mode_bands
@@ -29,14 +29,14 @@ from workbench.extraction.modes import extract_tests, find_mode_bands
 REAL = SHARED / "data" / "real"
 UNESP = REAL / "unesp-bert-bolted-beam"
 BRB = REAL / "rice-brb-brake-reuss-beam"
-needs_unesp = pytest.mark.skipif(not UNESP.is_dir(), reason="../shared/data/real/unesp-bert-bolted-beam is absent")
-needs_brb = pytest.mark.skipif(not BRB.is_dir(), reason="../shared/data/real/rice-brb-brake-reuss-beam is absent")
+needs_unesp = pytest.mark.shared("data/real/unesp-bert-bolted-beam")
+needs_brb = pytest.mark.shared("data/real/rice-brb-brake-reuss-beam")
 
 
 @pytest.fixture(scope="module")
 def unesp_modes():
     """(volts, bands, estimates per test in level order) for the six random-excitation levels."""
-    campaign = import_unesp_bert(UNESP)
+    campaign = import_unesp_bert(UNESP, REPO / "frames" / "unesp_bert.toml")
     tests = campaign.test_ids
     volts = [float(v) for v in campaign.design.set_index("test_id").loc[tests, "amplitude"]]
     sets = {t: frf_set(campaign, t) for t in tests}
@@ -72,7 +72,7 @@ def test_unesp_mode2_softens_and_damping_grows(unesp_modes):
 
 @needs_brb
 def test_brake_reuss_mode_near_80_hz_at_every_level():
-    campaign = import_brake_reuss(BRB, control="force")
+    campaign = import_brake_reuss(BRB, REPO / "frames" / "brake_reuss.toml", control="force")
     tests = campaign.test_ids
     assert len(tests) == 4
     damping = []

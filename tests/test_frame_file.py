@@ -6,9 +6,11 @@ import math
 
 import pytest
 
-from workbench.model.frame import FrameFileError, frame_to_toml, parse_frame, read_frame, write_frame
+from workbench.io.outputs import write_frame
+from workbench.model.frame import FrameFileError
+from workbench.model.frame_file import frame_to_toml, parse_frame, read_frame
 
-from conftest import SHARED
+from conftest import shared_path
 
 VALID = '''
 name = "portal"
@@ -124,9 +126,7 @@ def test_round_trip_through_the_writer(tmp_path):
 
 
 def test_reads_the_frame_written_by_another_program():
-    path = SHARED / "examples" / "independent-two-test-campaign" / "frame.toml"
-    if not path.exists():
-        pytest.skip("../shared is absent")
+    path = shared_path("examples", "independent-two-test-campaign", "frame.toml")
     frame = read_frame(path)
     assert frame.joint_names == ("A",) and len(frame.sensors) == 3
     assert read_frame(path) == frame and frame_to_toml(frame)

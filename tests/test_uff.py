@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from conftest import SHARED
+from conftest import REPO, SHARED
 from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign
-from workbench.model.frame import parse_frame
+from workbench.model.frame_file import parse_frame
 from workbench.io.uff import DIRECTION_CODES, campaign_from_uff, export_frfs, import_frfs, uff_quantity
 
 pyuff = pytest.importorskip("pyuff")
@@ -243,7 +243,7 @@ def real_uff_files() -> list[Path]:
     return sorted(p for p in root.rglob("*") if p.suffix.lower() in (".uff", ".unv", ".uf"))
 
 
-@pytest.mark.skipif(not (SHARED / "data").is_dir(), reason="../shared/data is absent")
+@pytest.mark.shared("data")
 def test_a_real_uff_file_imports():
     files = real_uff_files()
     if not files:
@@ -269,12 +269,12 @@ def test_a_real_uff_file_imports():
 UNESP = SHARED / "data" / "real" / "unesp-bert-bolted-beam"
 
 
-@pytest.mark.skipif(not UNESP.is_dir(), reason="../shared/data/real/unesp-bert-bolted-beam is absent")
+@pytest.mark.shared("data/real/unesp-bert-bolted-beam")
 def test_measured_campaign_round_trips_through_uff(tmp_path):
     """24 datasets of 1760 measured lines (LMS float32 values, 0.0625 Hz grid: even spacing)."""
     from workbench.io.real_data import import_unesp_bert
 
-    campaign = import_unesp_bert(UNESP)
+    campaign = import_unesp_bert(UNESP, REPO / "frames" / "unesp_bert.toml")
     path = export_frfs(campaign, tmp_path / "unesp.uff")
     assert {d["abscissa_spacing"] for d in pyuff.UFF(str(path)).read_sets(header_only=True)} == {1}
     pd.testing.assert_frame_equal(import_frfs(path, campaign.frame), campaign.frf, check_exact=True)

@@ -4,8 +4,10 @@ The method is that of Ghienne, Laurent & Blanze, "Robust characterization of the
 behaviour of light assembled structures with random parameters", MSSP 136 (2020) 106510.
 """
 
+from workbench.io.outputs import write_frame
 from workbench.model.assembly import Model, assemble
-from workbench.model.frame import Frame, FrameFileError, read_frame, write_frame
+from workbench.model.frame import Frame, FrameFileError
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import FRFSet, Modes, frame_frf, mac, model_modes, solve_modes
 
 __all__ = [

@@ -6,41 +6,29 @@ tests, ``design.csv`` (one row per test), measured FRFs in long form (``frf.csv`
 parameters already extracted) or ``moments.csv`` (published moments only).
 
 `load_campaign` rejects every malformation the contract lists with a `CampaignError` naming the
-file, the row (its line in the file) and the problem; it never changes the files. With
-`frame.toml` it is the only module, with `report`, that imports pandas.
+file, the row (its line in the file) and the problem; it never changes the files.
 """
 
 from __future__ import annotations
 
-
+import io
 import tomllib
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 import pandas as pd
 
-from workbench.model.frame import Frame, FrameFileError, frame_to_toml, read_frame, toml_string
-from workbench.model.modal import QUANTITIES, FRFSet
 from workbench.io.outputs import write_outputs
+from workbench.model.frame import Frame, FrameFileError
+from workbench.model.frame_file import frame_to_toml, read_frame, toml_string
+from workbench.model.modal import QUANTITIES, FRFSet
 
-__all__ = [
-    "CampaignError",
-    "Factor",
-    "Campaign",
-    "FACTOR_KINDS",
-    "FRF_COLUMNS",
-    "MODES_COLUMNS",
-    "MOMENTS_COLUMNS",
-    "load_campaign",
-    "write_campaign",
-    "campaign_toml",
-    "frf_set",
-    "PAPER_AMPLITUDE_RATIOS",
-    "amplitude_of_tests",
-]
+__all__ = ["CampaignError", "Factor", "Campaign", "FACTOR_KINDS", "FRF_COLUMNS", "MODES_COLUMNS",
+           "MOMENTS_COLUMNS", "load_campaign", "write_campaign", "campaign_files", "campaign_toml", "frf_set",
+           "PAPER_AMPLITUDE_RATIOS", "amplitude_of_tests"]
 
 FACTOR_KINDS = ("tightening", "amplitude", "other")
 REFERENCES = ("force", "voltage")
@@ -99,7 +87,7 @@ class Campaign:
     path: Path | None = field(default=None, compare=False)
 
     @property
-    def test_ids(self) -> list:
+    def test_ids(self) -> list[Any]:
         return [] if self.design is None else self.design["test_id"].tolist()
 
     def factor(self, name: str) -> Factor:
@@ -109,7 +97,7 @@ class Campaign:
         raise KeyError(f"{self.path or self.name}: factors: no factor named {name!r}")
 
 
-def _fail(path: Path | str, problem: str, line: int | None = None) -> None:
+def _fail(path: Path | str, problem: str, line: int | None = None) -> NoReturn:
     where = f"line {line}: " if line is not None else ""
     raise CampaignError(f"{path}: {where}{problem}")
 
@@ -130,7 +118,8 @@ def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, .
     try:
         if path.suffix == ".parquet":
             table = pd.read_parquet(path)
-            table[list(set(text_columns) & set(table.columns))] = table[list(set(text_columns) & set(table.columns))].astype(str)
+            text = list(set(text_columns) & set(table.columns))
+            table[text] = table[text].astype(str)
         else:
             with warnings.catch_warnings():
                 # a row longer than the header: pandas only warns and drops the extra field
@@ -221,18 +210,8 @@ def _parse_factors(data: Any, path: Path, frame: Frame) -> tuple[Factor, ...]:
     return tuple(factors)
 
 
-def load_campaign(directory: str | Path) -> Campaign:
-    """Load and validate a campaign directory (CONTRACTS.md section 2). The files are only read.
-
-    Raises
-    ------
-    CampaignError
-        One line naming the file, the line and the problem.
-    """
-    directory = Path(directory)
-    if not directory.is_dir():
-        _fail(directory, "is not a campaign directory")
-    path = directory / "campaign.toml"
+def _read_settings(path: Path) -> dict[str, Any]:
+    """``campaign.toml``: known keys, required keys and their types checked."""
     data = _read_toml(path)
     unknown = sorted(set(data) - _CAMPAIGN_KEYS)
     if unknown:
@@ -252,95 +231,139 @@ def load_campaign(directory: str | Path) -> Campaign:
     reference = data.get("reference", "force")
     if reference not in REFERENCES:
         _fail(path, f"reference: {reference!r} is not one of {', '.join(REFERENCES)}")
-    try:
-        frame = read_frame(directory / data["frame"])
-    except FrameFileError as exc:
-        raise CampaignError(str(exc)) from None
-    factors = _parse_factors(data.get("factors", {}), path, frame)
+    return data
 
+
+def _frf_path(directory: Path, path: Path, data: dict[str, Any]) -> Path | None:
+    """``frf.csv`` or ``frf.parquet`` (not both), or None; a campaign with FRFs states its quantity."""
     frf_csv, frf_parquet = directory / "frf.csv", directory / "frf.parquet"
     if frf_csv.exists() and frf_parquet.exists():
         _fail(directory, "holds both frf.csv and frf.parquet; keep one")
     frf_path = frf_csv if frf_csv.exists() else frf_parquet if frf_parquet.exists() else None
     if frf_path is not None and "quantity" not in data:
         _fail(path, "quantity: required key is missing (expected receptance, mobility or accelerance)")
+    return frf_path
+
+
+def _read_design(design_path: Path, factors: tuple[Factor, ...]) -> pd.DataFrame:
+    columns = ("test_id",) + tuple(f.name for f in factors)
+    design = _read_table(design_path, columns, columns)
+    _check_duplicates(design, ["test_id"], design_path)
+    for factor in factors:
+        bad = ~design[factor.name].isin(factor.levels)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            _fail(design_path, f"{factor.name} = {design[factor.name].iloc[row]!r} is not a declared "
+                               f"level (levels: {', '.join(factor.levels)})", _line(design_path, row))
+    return design
+
+
+def _read_frf(frf_path: Path, frame: Frame, ids: set[str], design_path: Path) -> pd.DataFrame:
+    """The long-form FRF table: known tests and sensors, frequencies increasing, every test present."""
+    frf = _read_table(frf_path, FRF_COLUMNS, ("test_id", "sensor"))
+    _check_tests(frf, frf_path, ids, design_path)
+    sensors = {s.name for s in frame.sensors}
+    bad = ~frf["sensor"].isin(sensors)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        _fail(frf_path, f"sensor {frf['sensor'].iloc[row]!r} is not a sensor of {frame.source} "
+                        f"(sensors: {', '.join(sorted(sensors)) or 'none'})", _line(frf_path, row))
+    _check_duplicates(frf, ["test_id", "sensor", "frequency_hz"], frf_path)
+    step = frf.groupby(["test_id", "sensor"], sort=False)["frequency_hz"].diff()
+    not_increasing = (step <= 0).to_numpy()
+    if not_increasing.any():
+        row = int(np.flatnonzero(not_increasing)[0])
+        _fail(frf_path, f"frequency_hz = {frf['frequency_hz'].iloc[row]:g} does not increase within "
+                        f"test {frf['test_id'].iloc[row]}, sensor {frf['sensor'].iloc[row]}",
+              _line(frf_path, row))
+    if (frf["frequency_hz"] < 0).any():
+        row = int(np.flatnonzero(frf["frequency_hz"] < 0)[0])
+        _fail(frf_path, "frequency_hz is negative", _line(frf_path, row))
+    without = sorted(ids - set(frf["test_id"]), key=str)
+    if without:
+        _fail(frf_path, f"test {without[0]} of {design_path.name} has no rows")
+    if frame.excitation is None:
+        _fail(frame.source, "excitation: required when a campaign has FRFs")
+    return frf
+
+
+def _read_modes(modes_path: Path, ids: set[str], design_path: Path) -> pd.DataFrame:
+    modes = _read_table(modes_path, MODES_COLUMNS, ("test_id",))
+    _check_tests(modes, modes_path, ids, design_path)
+    _check_duplicates(modes, ["test_id", "mode"], modes_path)
+    _check_values(modes, modes_path, {"mode": "integer >= 1", "frequency_hz": "positive",
+                                      "damping_ratio": "in [0, 1)"})
+    modes["mode"] = modes["mode"].astype(np.int64)
+    return modes
+
+
+def _read_moments(moments_path: Path) -> pd.DataFrame:
+    moments = _read_table(moments_path, MOMENTS_COLUMNS, ())
+    _check_duplicates(moments, ["mode"], moments_path)
+    _check_values(moments, moments_path, {"mode": "integer >= 1", "mean_hz": "positive",
+                                          "std_hz": "not negative"})
+    moments["mode"] = moments["mode"].astype(np.int64)
+    return moments
+
+
+def load_campaign(directory: str | Path) -> Campaign:
+    """Load and validate a campaign directory (CONTRACTS.md section 2). The files are only read.
+
+    Parameters
+    ----------
+    directory : the campaign directory (holding ``campaign.toml``).
+
+    Returns
+    -------
+    Campaign
+        The validated campaign; ``test_id`` integers when every id is one.
+
+    Raises
+    ------
+    CampaignError
+        One line naming the file, the line and the problem.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        _fail(directory, "is not a campaign directory")
+    path = directory / "campaign.toml"
+    data = _read_settings(path)
+    try:
+        frame = read_frame(directory / data["frame"])
+    except FrameFileError as exc:
+        raise CampaignError(str(exc)) from None
+    factors = _parse_factors(data.get("factors", {}), path, frame)
+    frf_path = _frf_path(directory, path, data)
     design_path = directory / "design.csv"
     modes_path, moments_path = directory / "modes.csv", directory / "moments.csv"
 
-    design = frf = modes = moments = None
+    design = None
     if design_path.exists():
-        columns = ("test_id",) + tuple(f.name for f in factors)
-        design = _read_table(design_path, columns, columns)
-        _check_duplicates(design, ["test_id"], design_path)
-        for factor in factors:
-            bad = ~design[factor.name].isin(factor.levels)
-            if bad.any():
-                row = int(np.flatnonzero(bad)[0])
-                _fail(design_path, f"{factor.name} = {design[factor.name].iloc[row]!r} is not a declared "
-                                   f"level (levels: {', '.join(factor.levels)})", _line(design_path, row))
+        design = _read_design(design_path, factors)
     elif frf_path is not None or modes_path.exists():
         _fail(design_path, "required file is missing (the campaign has tests)")
     ids = set(design["test_id"]) if design is not None else set()
-
-    if frf_path is not None:
-        frf = _read_table(frf_path, FRF_COLUMNS, ("test_id", "sensor"))
-        _check_tests(frf, frf_path, ids, design_path)
-        sensors = {s.name for s in frame.sensors}
-        bad = ~frf["sensor"].isin(sensors)
-        if bad.any():
-            row = int(np.flatnonzero(bad)[0])
-            _fail(frf_path, f"sensor {frf['sensor'].iloc[row]!r} is not a sensor of {frame.source} "
-                            f"(sensors: {', '.join(sorted(sensors)) or 'none'})", _line(frf_path, row))
-        _check_duplicates(frf, ["test_id", "sensor", "frequency_hz"], frf_path)
-        step = frf.groupby(["test_id", "sensor"], sort=False)["frequency_hz"].diff()
-        bad = (step <= 0).to_numpy()
-        if bad.any():
-            row = int(np.flatnonzero(bad)[0])
-            _fail(frf_path, f"frequency_hz = {frf['frequency_hz'].iloc[row]:g} does not increase within "
-                            f"test {frf['test_id'].iloc[row]}, sensor {frf['sensor'].iloc[row]}",
-                  _line(frf_path, row))
-        if (frf["frequency_hz"] < 0).any():
-            row = int(np.flatnonzero(frf["frequency_hz"] < 0)[0])
-            _fail(frf_path, "frequency_hz is negative", _line(frf_path, row))
-        without = sorted(ids - set(frf["test_id"]), key=str)
-        if without:
-            _fail(frf_path, f"test {without[0]} of {design_path.name} has no rows")
-        if frame.excitation is None:
-            _fail(frame.source, "excitation: required when a campaign has FRFs")
-
-    if modes_path.exists():
-        modes = _read_table(modes_path, MODES_COLUMNS, ("test_id",))
-        _check_tests(modes, modes_path, ids, design_path)
-        _check_duplicates(modes, ["test_id", "mode"], modes_path)
-        _check_values(modes, modes_path, {"mode": "integer >= 1", "frequency_hz": "positive",
-                                          "damping_ratio": "in [0, 1)"})
-        modes["mode"] = modes["mode"].astype(np.int64)
-
-    if moments_path.exists():
-        moments = _read_table(moments_path, MOMENTS_COLUMNS, ())
-        _check_duplicates(moments, ["mode"], moments_path)
-        _check_values(moments, moments_path, {"mode": "integer >= 1", "mean_hz": "positive",
-                                              "std_hz": "not negative"})
-        moments["mode"] = moments["mode"].astype(np.int64)
-
+    frf = _read_frf(frf_path, frame, ids, design_path) if frf_path is not None else None
+    modes = _read_modes(modes_path, ids, design_path) if modes_path.exists() else None
+    moments = _read_moments(moments_path) if moments_path.exists() else None
     if design is None and frf is None and modes is None and moments is None:
         _fail(directory, "holds neither tests (design.csv) nor moments.csv")
     _integer_ids(design, frf, modes)
-    return Campaign(name=data["name"], frame=frame, synthetic=data["synthetic"], quantity=quantity,
-                    reference=reference, description=data.get("description", ""), source=data.get("source", ""),
+    return Campaign(name=data["name"], frame=frame, synthetic=data["synthetic"],
+                    quantity=data.get("quantity", "accelerance"), reference=data.get("reference", "force"),
+                    description=data.get("description", ""), source=data.get("source", ""),
                     factors=factors, design=design, frf=frf, modes=modes, moments=moments,
                     frame_file=data["frame"], path=directory)
 
 
+_RULES = {"integer >= 1": lambda v: (v >= 1) & (v == np.round(v)), "positive": lambda v: v > 0,
+          "not negative": lambda v: v >= 0, "in [0, 1)": lambda v: (v >= 0) & (v < 1)}
+
+
 def _check_values(table: pd.DataFrame, path: Path, rules: dict[str, str]) -> None:
-    tests = {
-        "integer >= 1": lambda v: (v >= 1) & (v == np.round(v)),
-        "positive": lambda v: v > 0,
-        "not negative": lambda v: v >= 0,
-        "in [0, 1)": lambda v: (v >= 0) & (v < 1),
-    }
+    """Check each ``column: rule`` of `_RULES` on every row of ``table``."""
     for column, rule in rules.items():
-        ok = tests[rule](table[column].to_numpy())
+        ok = _RULES[rule](table[column].to_numpy())
         if not ok.all():
             row = int(np.flatnonzero(~ok)[0])
             _fail(path, f"{column} = {table[column].iloc[row]:g} must be {rule}", _line(path, row))
@@ -369,34 +392,15 @@ def _csv(table: pd.DataFrame, columns: tuple[str, ...]) -> str:
     return table[list(columns)].to_csv(index=False, float_format="%.17g", lineterminator="\n")
 
 
-def write_campaign(campaign: Campaign, directory: str | Path, force: bool = False,
-                   frf_format: str = "csv", frf_dtype: str = "float64") -> Path:
-    """Write ``campaign`` as a contract directory, all files or none.
-
-    Parameters
-    ----------
-    frf_format : "csv" or "parquet" (smaller; the contract accepts either).
-    frf_dtype : "float64" or "float32" for the parquet FRF values (float32 keeps 7 digits: for
-        measured data with noise well above 1e-7 this loses nothing).
-    """
-    directory = Path(directory)
+def campaign_files(campaign: Campaign, frf_format: str = "csv", frf_dtype: str = "float64") -> dict[str, str | bytes]:
+    """The files of ``campaign`` as a contract directory: file name -> content (see `write_campaign`)."""
     files: dict[str, str | bytes] = {"campaign.toml": campaign_toml(campaign),
                                      campaign.frame_file: frame_to_toml(campaign.frame)}
     if campaign.design is not None:
         files["design.csv"] = _csv(campaign.design, ("test_id",) + tuple(f.name for f in campaign.factors))
     if campaign.frf is not None:
         if frf_format == "parquet":
-            import io
-
-            table = campaign.frf[list(FRF_COLUMNS)].copy()
-            table[["real", "imag"]] = table[["real", "imag"]].astype(frf_dtype)
-            frequency = table["frequency_hz"].to_numpy(dtype=float)
-            if np.array_equal(frequency.astype(np.float32).astype(float), frequency):
-                table["frequency_hz"] = frequency.astype(np.float32)  # exact (e.g. multiples of 1/4 Hz)
-            buffer = io.BytesIO()
-            # gzip: noisy FRF values hardly compress, but it is the smallest of pyarrow's codecs here
-            table.to_parquet(buffer, index=False, compression="gzip")
-            files["frf.parquet"] = buffer.getvalue()
+            files["frf.parquet"] = _frf_parquet(campaign.frf, frf_dtype)
         elif frf_format == "csv":
             files["frf.csv"] = _csv(campaign.frf, FRF_COLUMNS)
         else:
@@ -405,11 +409,44 @@ def write_campaign(campaign: Campaign, directory: str | Path, force: bool = Fals
         files["modes.csv"] = _csv(campaign.modes, MODES_COLUMNS)
     if campaign.moments is not None:
         files["moments.csv"] = _csv(campaign.moments, MOMENTS_COLUMNS)
-    write_outputs(directory, files, force=force)
+    return files
+
+
+def _frf_parquet(frf: pd.DataFrame, frf_dtype: str) -> bytes:
+    table = frf[list(FRF_COLUMNS)].copy()
+    table = table.astype({"real": frf_dtype, "imag": frf_dtype})
+    frequency = table["frequency_hz"].to_numpy(dtype=float)
+    if np.array_equal(frequency.astype(np.float32).astype(float), frequency):
+        table["frequency_hz"] = frequency.astype(np.float32)  # exact (e.g. multiples of 1/4 Hz)
+    buffer = io.BytesIO()
+    # gzip: noisy FRF values hardly compress, but it is the smallest of pyarrow's codecs here
+    table.to_parquet(buffer, index=False, compression="gzip")
+    return buffer.getvalue()
+
+
+def write_campaign(campaign: Campaign, directory: str | Path, force: bool = False,
+                   frf_format: str = "csv", frf_dtype: str = "float64") -> Path:
+    """Write ``campaign`` as a contract directory, all files or none (`write_outputs`).
+
+    Parameters
+    ----------
+    directory : the campaign directory, created when missing.
+    force : replace existing files.
+    frf_format : "csv" or "parquet" (smaller; the contract accepts either).
+    frf_dtype : "float64" or "float32" for the parquet FRF values (float32 keeps 7 digits: for
+        measured data with noise well above 1e-7 this loses nothing).
+
+    Returns
+    -------
+    Path
+        ``directory``.
+    """
+    directory = Path(directory)
+    write_outputs(directory, campaign_files(campaign, frf_format, frf_dtype), force=force)
     return directory
 
 
-def frf_set(campaign: Campaign, test_id) -> FRFSet:
+def frf_set(campaign: Campaign, test_id: Any) -> FRFSet:
     """The FRFs of one test as arrays: sensors in the frame's order, one frequency axis.
 
     Raises
@@ -432,9 +469,6 @@ def frf_set(campaign: Campaign, test_id) -> FRFSet:
     return FRFSet(axis.astype(float), values, tuple(order), campaign.quantity)
 
 
-
-
-
 # Paper 2.2.2: the high excitation amplitude is five times the low one.
 PAPER_AMPLITUDE_RATIOS = {"low": 1.0, "high": 5.0}
 
@@ -449,6 +483,7 @@ def amplitude_of_tests(campaign: Campaign) -> np.ndarray | None:
     if not factors:
         return None
     factor = factors[0]
+    assert campaign.design is not None  # load_campaign reads a design wherever there are factors
     keys = campaign.design.set_index("test_id").reindex(campaign.test_ids)[factor.name].astype(str)
     try:
         values = np.array([float(k) for k in keys])

@@ -1,11 +1,11 @@
 """Importers for two real measured data sets, each into a contract campaign (CONTRACTS.md section 2).
 
 Neither data set may be redistributed with the workbench: the functions read the MAT files from
-wherever the user keeps them (``root``) and build the campaign in memory; `main` writes it with
-`write_campaign` to a directory outside the repository::
+wherever the user keeps them (``root``) and build the campaign in memory, with the nominal frame
+the caller passes (the repository has them: ``frames/unesp_bert.toml``, ``frames/brake_reuss.toml``);
+`workbench.io.campaign.write_campaign` writes it to a directory outside the repository::
 
-    python -m workbench.io.real_data unesp ROOT OUT_DIR [--which Rand] [--channels accelerometers]
-    python -m workbench.io.real_data brake-reuss ROOT OUT_DIR [--control force]
+    write_campaign(import_unesp_bert(ROOT, "frames/unesp_bert.toml"), OUT_DIR)
 
 UNESP-BERT (SHM Lab, UNESP Ilha Solteira; GitHub ``shm-unesp/DATASET_BOLTEDBEAM``, licence
 CC BY-NC-SA): a clamped two-bar aluminium beam with a two-bolt lap joint, driven by a shaker whose
@@ -27,29 +27,20 @@ amplitude (N), Accel 3 amplitude (m/s2) and phase (rad); the accelerance is
 
 from __future__ import annotations
 
-import argparse
 import re
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.io import loadmat  # MATLAB v5 files: scipy.io reads them, no h5py needed
 
-from workbench.io.campaign import FRF_COLUMNS, Campaign, CampaignError, Factor, write_campaign
-from workbench.model.frame import Frame, FrameFileError, read_frame
+from workbench.io.campaign import FRF_COLUMNS, Campaign, Factor
+from workbench.model.frame import Frame, FrameFileError
+from workbench.model.frame_file import read_frame
 
-__all__ = [
-    "UNESP_TESTS",
-    "UNESP_SOURCE",
-    "BRAKE_REUSS_SOURCE",
-    "frame_path",
-    "import_unesp_bert",
-    "import_brake_reuss",
-    "main",
-]
+__all__ = ["UNESP_TESTS", "UNESP_SOURCE", "BRAKE_REUSS_SOURCE", "import_unesp_bert", "import_brake_reuss"]
 
-REPOSITORY = Path(__file__).resolve().parents[2]
 # which -> (folder under Data/T5Nm, excited band in Hz: lines outside it carry no excitation)
 UNESP_TESTS = {
     "Rand": ("Rand", (0.0, 110.0)),
@@ -76,26 +67,17 @@ _UNESP_CHANNELS = {"accelerometers": "accelerance", "laser": "mobility"}
 _BRB_GROUPS = {"force": "ForceControl", "response": "ResponseControl"}
 
 
-def frame_path(name: str) -> Path:
-    """The repository's frame file ``frames/<name>.toml`` (present in a source checkout)."""
-    return REPOSITORY / "frames" / f"{name}.toml"
-
-
-def _frame(frame: Frame | str | Path | None, name: str) -> Frame:
+def _frame(frame: Frame | str | Path) -> Frame:
+    """``frame``, or the frame file it names (read and validated)."""
     if isinstance(frame, Frame):
         return frame
-    path = Path(frame) if frame is not None else frame_path(name)
-    if not path.is_file():
-        raise ValueError(f"{path}: frame file not found (pass frame= the {name}.toml of the workbench repository)")
     try:
-        return read_frame(path)
+        return read_frame(frame)
     except FrameFileError as exc:
         raise ValueError(str(exc)) from None
 
 
 def _loadmat(path: Path) -> dict[str, Any]:
-    from scipy.io import loadmat  # MATLAB v5 files: scipy.io reads them, no h5py needed
-
     if not path.is_file():
         raise ValueError(f"{path}: file not found")
     try:
@@ -154,18 +136,18 @@ def _unesp_run(path: Path, channels: str, band: tuple[float, float]) -> tuple[np
     return axis[keep], {s: v[keep] for s, v in sensors.items()}, description
 
 
-def import_unesp_bert(root: str | Path, which: str = "Rand", channels: str = "accelerometers",
-                      frame: Frame | str | Path | None = None) -> Campaign:
+def import_unesp_bert(root: str | Path, frame: Frame | str | Path, which: str = "Rand",
+                      channels: str = "accelerometers") -> Campaign:
     """The UNESP-BERT tests at 5 N.m of one excitation type as a campaign, one test per level.
 
     Parameters
     ----------
     root : the data set directory (holding ``Data/T5Nm``); only read.
+    frame : the nominal model, or its frame file (the repository's ``frames/unesp_bert.toml``).
     which : ``"Rand"`` (band-limited random, 0-110 Hz, 0.05...0.30 V, 6 levels), ``"Chirp0to110Hz"``
         (5 levels, no 0.20 V), ``"Chirp0to40Hz"`` or ``"Chirp70to110Hz"`` (6 levels each).
     channels : ``"accelerometers"`` (accelerance-like, (m/s2)/V, sensors acc1..acc4) or
         ``"laser"`` (mobility-like, (m/s)/V, sensor laser at the tip).
-    frame : the nominal model; default the repository's ``frames/unesp_bert.toml``.
 
     Returns
     -------
@@ -177,14 +159,15 @@ def import_unesp_bert(root: str | Path, which: str = "Rand", channels: str = "ac
     Raises
     ------
     ValueError
-        A missing directory or file, or a file that is not the export the provenance describes.
+        A missing directory or file, an invalid frame file, or a file that is not the export the
+        provenance describes.
     """
     root = Path(root)
     if which not in UNESP_TESTS:
         raise ValueError(f"which: {which!r} is not one of {', '.join(UNESP_TESTS)}")
     if channels not in _UNESP_CHANNELS:
         raise ValueError(f"channels: {channels!r} is not one of {', '.join(_UNESP_CHANNELS)}")
-    model = _frame(frame, "unesp_bert")
+    model = _frame(frame)
     folder = _unesp_folder(root, which)
     band = UNESP_TESTS[which][1]
     runs = []
@@ -254,15 +237,15 @@ def _brb_run(path: Path, group: str, k: int, run: Any) -> tuple[np.ndarray, np.n
     return unique, h, mean(force), mean(amplitude)
 
 
-def import_brake_reuss(root: str | Path, control: str = "force", frame: Frame | str | Path | None = None) -> Campaign:
+def import_brake_reuss(root: str | Path, frame: Frame | str | Path, control: str = "force") -> Campaign:
     """The Brake-Reuss beam stepped-sine runs of one control mode as a campaign, one test per level.
 
     Parameters
     ----------
     root : the directory holding ``ForcedFrequencyResponses.mat`` (or the file itself); only read.
+    frame : the nominal model, or its frame file (the repository's ``frames/brake_reuss.toml``).
     control : ``"force"`` (4 force-controlled runs, mean fundamental force about 0.20, 0.49, 0.97,
         1.46 N) or ``"response"`` (8 response-controlled runs, Accel 3 about 5 ... 80 m/s2).
-    frame : the nominal model; default the repository's ``frames/brake_reuss.toml``.
 
     Returns
     -------
@@ -275,7 +258,7 @@ def import_brake_reuss(root: str | Path, control: str = "force", frame: Frame | 
     root = Path(root)
     if control not in _BRB_GROUPS:
         raise ValueError(f"control: {control!r} is not one of {', '.join(_BRB_GROUPS)}")
-    model = _frame(frame, "brake_reuss")
+    model = _frame(frame)
     group = _BRB_GROUPS[control]
     path, runs = _brb_runs(root, group)
     prefix = "FC" if control == "force" else "RC"
@@ -305,47 +288,3 @@ def import_brake_reuss(root: str | Path, control: str = "force", frame: Frame | 
         factors=(Factor("amplitude", "amplitude", {r[1]: r[3] for r in rows}),),
         design=pd.DataFrame({"test_id": [r[2] for r in rows], "amplitude": keys}),
         frf=pd.concat(tables, ignore_index=True)[list(FRF_COLUMNS)])
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m workbench.io.real_data {unesp,brake-reuss} ROOT OUT_DIR``: write the campaign.
-
-    Exits 0 on success, 2 with a one-line reason on standard error on bad input. OUT_DIR must lie
-    outside the workbench repository (the licences forbid redistributing these data).
-    """
-    parser = argparse.ArgumentParser(prog="python -m workbench.io.real_data",
-                                     description="Import a real data set into a contract campaign directory.")
-    sub = parser.add_subparsers(dest="dataset", required=True)
-    unesp = sub.add_parser("unesp", help="UNESP-BERT bolted beam (LMS MAT files)")
-    unesp.add_argument("root", type=Path)
-    unesp.add_argument("out", type=Path)
-    unesp.add_argument("--which", default="Rand", choices=list(UNESP_TESTS))
-    unesp.add_argument("--channels", default="accelerometers", choices=list(_UNESP_CHANNELS))
-    brb = sub.add_parser("brake-reuss", help="Brake-Reuss beam stepped-sine FRFs")
-    brb.add_argument("root", type=Path)
-    brb.add_argument("out", type=Path)
-    brb.add_argument("--control", default="force", choices=list(_BRB_GROUPS))
-    for p in (unesp, brb):
-        p.add_argument("--force", action="store_true", help="replace files in an existing OUT_DIR")
-        p.add_argument("--frame", type=Path, default=None, help="frame file (default: the repository's)")
-    args = parser.parse_args(argv)
-    try:
-        out = args.out.resolve()
-        if out == REPOSITORY or REPOSITORY in out.parents:
-            raise ValueError(f"{args.out}: inside the workbench repository; the data's licences forbid "
-                             "redistributing them: write the campaign elsewhere")
-        if args.dataset == "unesp":
-            campaign = import_unesp_bert(args.root, args.which, args.channels, args.frame)
-        else:
-            campaign = import_brake_reuss(args.root, args.control, args.frame)
-        write_campaign(campaign, args.out, force=args.force)
-    except (ValueError, CampaignError, OSError) as exc:
-        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-    print(f"wrote {args.out}: {len(campaign.test_ids)} tests, {campaign.frf['sensor'].nunique()} sensor(s), "
-          f"{campaign.quantity} over {campaign.reference}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -51,15 +51,19 @@ campaign tables (STYLE.md layering).
 from __future__ import annotations
 
 import math
-import os
+import tempfile
 import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn, cast
 
 import numpy as np
 import pandas as pd
+import pyuff
 
 from workbench.io.campaign import FRF_COLUMNS, Campaign, Factor
+from workbench.io.outputs import write_file
 from workbench.model.frame import Frame
 from workbench.model.modal import QUANTITIES
 
@@ -112,7 +116,7 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
     campaign : a campaign with FRFs (``campaign.frf`` long form, ``campaign.quantity`` in
         receptance m/N, mobility m/s/N or accelerance m/s2/N; rotational sensors in rad, rad/s,
         rad/s2 per N).
-    path : the ``.uff`` file; written whole or not at all (a temporary file renamed into place),
+    path : the ``.uff`` file; written whole or not at all (`workbench.io.outputs.write_outputs`),
         an existing file is replaced.
     binary : True (default) for dataset 58b, exact float64; False for ASCII (12 significant
         digits).
@@ -128,8 +132,6 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
         No FRFs, no excitation, a non-finite value, an id that does not fit an 80-character id
         line, or (ASCII only) an uneven axis that 6 significant digits cannot keep increasing.
     """
-    import pyuff
-
     path = Path(path)
     frame = campaign.frame
     if campaign.frf is None or campaign.frf.empty:
@@ -179,26 +181,25 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
             "x": axis, "data": values,
         }
         datasets.append(dset)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        with warnings.catch_warnings():
-            # pyuff's binary writer (2.4-2.5) reopens the file and leaves that handle for the
-            # garbage collector, which closes it (flushing the closing "-1") with a ResourceWarning
-            # as _write58 returns; a warning turned into an error would lose that last line.
-            # Its "overwrite" mode reopens the file with "wb" after writing the first header, which
-            # erases that header: so start from an empty file and append every dataset.
-            warnings.simplefilter("ignore", ResourceWarning)
-            tmp.write_bytes(b"")
-            pyuff.UFF(str(tmp)).write_sets(datasets, mode="add")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return write_file(path, _uff_bytes(datasets))
+
+
+def _uff_bytes(datasets: list[dict[str, Any]]) -> bytes:
+    """The universal file of ``datasets`` as pyuff writes it (pyuff writes only to a named file)."""
+    with tempfile.TemporaryDirectory() as scratch, warnings.catch_warnings():
+        # pyuff's binary writer (2.4-2.5) reopens the file and leaves that handle for the
+        # garbage collector, which closes it (flushing the closing "-1") with a ResourceWarning
+        # as _write58 returns; a warning turned into an error would lose that last line.
+        # Its "overwrite" mode reopens the file with "wb" after writing the first header, which
+        # erases that header: so start from an empty file and append every dataset.
+        warnings.simplefilter("ignore", ResourceWarning)
+        scratch_file = Path(scratch) / "frf.uff"
+        scratch_file.write_bytes(b"")
+        pyuff.UFF(str(scratch_file)).write_sets(datasets, mode="add")
+        return scratch_file.read_bytes()
 
 
 def _read_datasets(path: Path, header_only: bool = False) -> list[dict[str, Any]]:
-    import pyuff
-
     if not path.is_file():
         raise ValueError(f"{path}: no such UFF file")
     try:
@@ -213,7 +214,18 @@ def _read_datasets(path: Path, header_only: bool = False) -> list[dict[str, Any]
     return list(sets)
 
 
-def _quantity_of(dset: dict[str, Any], fail) -> str | None:
+_Fail = Callable[[str], NoReturn]
+
+
+def _failer(path: Path, index: int, dset: dict[str, Any]) -> _Fail:
+    """Raise the one-line error of dataset ``index`` (0-based among datasets 58) of ``path``."""
+    def fail(problem: str) -> NoReturn:
+        raise ValueError(f"{path}: dataset {index} (id1 {dset.get('id1', '')!r}): {problem}")
+
+    return fail
+
+
+def _quantity_of(dset: dict[str, Any], fail: _Fail) -> str | None:
     code = int(dset.get("ordinate_spec_data_type", 0))
     for quantity, known in ORDINATE_TYPES.items():
         if code == known:
@@ -231,17 +243,17 @@ def _reference_of(dset: dict[str, Any]) -> str:
     return "force"
 
 
-def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str] | None,
-          quantity: str | None, test_id: Any) -> tuple[pd.DataFrame, str, str]:
-    """The long-form table, the quantity and the reference of a UFF file; see `import_frfs`."""
-    path = Path(path)
-    if quantity is not None and quantity not in QUANTITIES:
-        raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
-    sets = _read_datasets(path)
+def _unit_factors(sets: list[dict[str, Any]]) -> tuple[float, float]:
+    """Length and force factors to SI of the file's units dataset 164 (the last one), else 1."""
     length_factor, force_factor = 1.0, 1.0
     for dset in sets:
         if dset.get("type") == 164:
             length_factor, force_factor = float(dset["length"]), float(dset["force"])
+    return length_factor, force_factor
+
+
+def _sensor_lookup(frame: Frame, sensor_map: dict[tuple[int, int], str] | None) -> dict[tuple[int, int], str]:
+    """``{(node, direction): sensor}``: ``sensor_map``, else the frame's own numbering."""
     numbering = _node_numbers(frame)
     frame_sensors = {(numbering[s.point], DIRECTION_CODES[s.dof]): s.name for s in frame.sensors}
     lookup = frame_sensors if sensor_map is None else {(int(n), int(d)): s for (n, d), s in sensor_map.items()}
@@ -250,83 +262,120 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
         if name not in known:
             raise ValueError(f"sensor_map: {name!r} is not a sensor of {frame.source} "
                              f"(sensors: {', '.join(sorted(known)) or 'none'})")
+    return lookup
 
-    tables, seen = [], set()
-    found_quantity: str | None = None
-    found_reference: str | None = None
-    references: set[tuple[int, int]] = set()
-    index = -1
-    for dset in sets:
-        if dset.get("type") != 58:
-            continue
-        index += 1
 
-        def fail(problem: str) -> None:
-            raise ValueError(f"{path}: dataset {index} (id1 {dset.get('id1', '')!r}): {problem}")
+@dataclass
+class _Agreement:
+    """What the datasets read so far share: one quantity, one reference, one excitation, no repeat."""
 
-        if int(dset.get("func_type", -1)) != FRF_FUNCTION_TYPE:
-            fail(f"function type {dset.get('func_type')} is not an FRF (4)")
-        if int(dset.get("ord_data_type", 0)) not in (5, 6):
-            fail(f"ordinate data type {dset.get('ord_data_type')} is real; an FRF is complex (5 or 6)")
-        if int(dset.get("abscissa_spec_data_type", 0)) not in (0, FREQUENCY_TYPE):
-            fail(f"abscissa specific data type {dset['abscissa_spec_data_type']} is not frequency (18)")
-        this = _quantity_of(dset, fail) or quantity
-        if this is None:
-            fail("the ordinate type is unknown (0): pass quantity= (receptance, mobility or accelerance)")
-        if found_quantity is None:
-            found_quantity = this
-        if this != found_quantity:
-            fail(f"inconsistent quantity: {this} after {found_quantity} in earlier datasets")
-        if quantity is not None and this != quantity:
-            fail(f"inconsistent quantity: the dataset holds {this}, {quantity} was asked for")
-        reference = _reference_of(dset)
-        if found_reference is None:
-            found_reference = reference
-        if reference != found_reference:
-            fail(f"inconsistent reference: {reference} after {found_reference} in earlier datasets")
+    asked: str | None  # the quantity the caller asked for
+    quantity: str | None = None
+    reference: str | None = None
+    excitations: set[tuple[int, int]] = field(default_factory=set)
+    seen: set[tuple[Any, str]] = field(default_factory=set)
 
-        ours = str(dset.get("id1", "")).startswith(_MARK)
-        if ours:
-            tid = str(dset.get("id2", "")).removeprefix("test_id=").strip()
-            sensor = str(dset.get("id4", "")).removeprefix("sensor=").strip()
-            if not str(dset.get("id2", "")).startswith("test_id=") or not tid:
-                fail(f"id2 {dset.get('id2')!r} does not hold test_id=...")
-            if sensor not in known:
-                fail(f"sensor {sensor!r} (id4) is not a sensor of {frame.source}")
-        else:
-            tid = test_id
-            key = (int(dset["rsp_node"]), abs(int(dset["rsp_dir"])))
-            if key not in lookup:
-                fail(f"unknown response node {dset['rsp_node']} direction {dset['rsp_dir']} "
-                     f"(known (node, direction): {sorted(lookup)}; pass sensor_map)")
-            sensor = lookup[key]
-        if int(dset.get("rsp_dir", 0)) == 0 or abs(int(dset.get("rsp_dir", 0))) not in DIRECTION_CODES.values():
-            fail(f"unknown response direction {dset.get('rsp_dir')} (a planar frame has 1 +X, 2 +Y, 6 +Z rotation)")
-        ref_dir = int(dset.get("ref_dir", 0))
-        if abs(ref_dir) not in DIRECTION_CODES.values():
-            fail(f"unknown reference direction {ref_dir} (a planar frame has 1 +X, 2 +Y, 6 +Z rotation)")
-        references.add((int(dset["ref_node"]), abs(ref_dir)))
-        if len(references) > 1:
-            fail(f"a second reference (node, direction) {sorted(references)}: a campaign has one excitation")
-        if (tid, sensor) in seen:
-            fail(f"test {tid}, sensor {sensor} already read from an earlier dataset")
-        seen.add((tid, sensor))
 
-        axis = np.asarray(dset["x"], dtype=np.float64)
-        values = np.asarray(dset["data"], dtype=np.complex128)
-        if axis.shape != values.shape or axis.size == 0:
-            fail(f"{values.size} ordinates for {axis.size} abscissa values")
-        if not (np.all(np.isfinite(axis)) and np.all(np.isfinite(values.real)) and np.all(np.isfinite(values.imag))):
-            fail("NaN or infinite value")
-        if np.any(np.diff(axis) <= 0) or axis[0] < 0:
-            fail("the frequency axis is not strictly increasing from a non-negative value")
-        sign = math.copysign(1.0, int(dset["rsp_dir"])) * math.copysign(1.0, ref_dir)
-        rotation = abs(int(dset["rsp_dir"])) == DIRECTION_CODES["rz"]
-        scale = sign * (1.0 if rotation else 1.0 / length_factor) * (force_factor if reference == "force" else 1.0)
-        if scale != 1.0:
-            values = values * scale
-        tables.append(pd.DataFrame({"test_id": [tid] * axis.size, "sensor": sensor, "frequency_hz": axis,
-                                    "real": values.real.copy(), "imag": values.imag.copy()}))
+def _check_frf_kind(dset: dict[str, Any], fail: _Fail, agreed: _Agreement) -> str:
+    """Check that ``dset`` is a complex FRF over frequency like the earlier ones; its reference."""
+    if int(dset.get("func_type", -1)) != FRF_FUNCTION_TYPE:
+        fail(f"function type {dset.get('func_type')} is not an FRF (4)")
+    if int(dset.get("ord_data_type", 0)) not in (5, 6):
+        fail(f"ordinate data type {dset.get('ord_data_type')} is real; an FRF is complex (5 or 6)")
+    if int(dset.get("abscissa_spec_data_type", 0)) not in (0, FREQUENCY_TYPE):
+        fail(f"abscissa specific data type {dset['abscissa_spec_data_type']} is not frequency (18)")
+    this = _quantity_of(dset, fail) or agreed.asked
+    if this is None:
+        fail("the ordinate type is unknown (0): pass quantity= (receptance, mobility or accelerance)")
+    if agreed.quantity is None:
+        agreed.quantity = this
+    if this != agreed.quantity:
+        fail(f"inconsistent quantity: {this} after {agreed.quantity} in earlier datasets")
+    if agreed.asked is not None and this != agreed.asked:
+        fail(f"inconsistent quantity: the dataset holds {this}, {agreed.asked} was asked for")
+    reference = _reference_of(dset)
+    if agreed.reference is None:
+        agreed.reference = reference
+    if reference != agreed.reference:
+        fail(f"inconsistent reference: {reference} after {agreed.reference} in earlier datasets")
+    return reference
+
+
+def _test_and_sensor(dset: dict[str, Any], fail: _Fail, frame: Frame, lookup: dict[tuple[int, int], str],
+                     test_id: Any) -> tuple[Any, str]:
+    """The test and the sensor of ``dset``: from its ids in our files, else from its response node."""
+    if str(dset.get("id1", "")).startswith(_MARK):
+        tid = str(dset.get("id2", "")).removeprefix("test_id=").strip()
+        sensor = str(dset.get("id4", "")).removeprefix("sensor=").strip()
+        if not str(dset.get("id2", "")).startswith("test_id=") or not tid:
+            fail(f"id2 {dset.get('id2')!r} does not hold test_id=...")
+        if sensor not in {s.name for s in frame.sensors}:
+            fail(f"sensor {sensor!r} (id4) is not a sensor of {frame.source}")
+        return tid, sensor
+    key = (int(dset["rsp_node"]), abs(int(dset["rsp_dir"])))
+    if key not in lookup:
+        fail(f"unknown response node {dset['rsp_node']} direction {dset['rsp_dir']} "
+             f"(known (node, direction): {sorted(lookup)}; pass sensor_map)")
+    return test_id, lookup[key]
+
+
+def _check_directions(dset: dict[str, Any], fail: _Fail, agreed: _Agreement, tid: Any, sensor: str) -> int:
+    """Check the response and reference directions, one excitation, a new test/sensor; the reference direction."""
+    if int(dset.get("rsp_dir", 0)) == 0 or abs(int(dset.get("rsp_dir", 0))) not in DIRECTION_CODES.values():
+        fail(f"unknown response direction {dset.get('rsp_dir')} (a planar frame has 1 +X, 2 +Y, 6 +Z rotation)")
+    ref_dir = int(dset.get("ref_dir", 0))
+    if abs(ref_dir) not in DIRECTION_CODES.values():
+        fail(f"unknown reference direction {ref_dir} (a planar frame has 1 +X, 2 +Y, 6 +Z rotation)")
+    agreed.excitations.add((int(dset["ref_node"]), abs(ref_dir)))
+    if len(agreed.excitations) > 1:
+        fail(f"a second reference (node, direction) {sorted(agreed.excitations)}: a campaign has one excitation")
+    if (tid, sensor) in agreed.seen:
+        fail(f"test {tid}, sensor {sensor} already read from an earlier dataset")
+    agreed.seen.add((tid, sensor))
+    return ref_dir
+
+
+def _dataset_rows(dset: dict[str, Any], fail: _Fail, tid: Any, sensor: str, ref_dir: int, reference: str,
+                  units: tuple[float, float]) -> pd.DataFrame:
+    """The long-form rows of one dataset, in the frame's +x, +y, +rz axes and SI units.
+
+    ``units`` are the file's length and force factors to SI (`_unit_factors`).
+    """
+    axis = np.asarray(dset["x"], dtype=np.float64)
+    values = np.asarray(dset["data"], dtype=np.complex128)
+    if axis.shape != values.shape or axis.size == 0:
+        fail(f"{values.size} ordinates for {axis.size} abscissa values")
+    if not (np.all(np.isfinite(axis)) and np.all(np.isfinite(values.real)) and np.all(np.isfinite(values.imag))):
+        fail("NaN or infinite value")
+    if np.any(np.diff(axis) <= 0) or axis[0] < 0:
+        fail("the frequency axis is not strictly increasing from a non-negative value")
+    length_factor, force_factor = units
+    sign = math.copysign(1.0, int(dset["rsp_dir"])) * math.copysign(1.0, ref_dir)
+    rotation = abs(int(dset["rsp_dir"])) == DIRECTION_CODES["rz"]
+    scale = sign * (1.0 if rotation else 1.0 / length_factor) * (force_factor if reference == "force" else 1.0)
+    if scale != 1.0:
+        values = values * scale
+    return pd.DataFrame({"test_id": [tid] * axis.size, "sensor": sensor, "frequency_hz": axis,
+                         "real": values.real.copy(), "imag": values.imag.copy()})
+
+
+def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str] | None,
+          quantity: str | None, test_id: Any) -> tuple[pd.DataFrame, str, str]:
+    """The long-form table, the quantity and the reference of a UFF file; see `import_frfs`."""
+    path = Path(path)
+    if quantity is not None and quantity not in QUANTITIES:
+        raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+    sets = _read_datasets(path)
+    units = _unit_factors(sets)
+    lookup = _sensor_lookup(frame, sensor_map)
+    agreed = _Agreement(quantity)
+    tables = []
+    for index, dset in enumerate(d for d in sets if d.get("type") == 58):
+        fail = _failer(path, index, dset)
+        reference = _check_frf_kind(dset, fail, agreed)
+        tid, sensor = _test_and_sensor(dset, fail, frame, lookup, test_id)
+        ref_dir = _check_directions(dset, fail, agreed, tid, sensor)
+        tables.append(_dataset_rows(dset, fail, tid, sensor, ref_dir, reference, units))
     if not tables:
         raise ValueError(f"{path}: holds no dataset 58 (function at nodal DOF)")
     table = pd.concat(tables, ignore_index=True)[list(FRF_COLUMNS)]
@@ -335,7 +384,8 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
         table["test_id"] = ids.astype(np.int64)
     else:
         table["test_id"] = ids
-    return table, found_quantity, found_reference
+    # both set by the first dataset
+    return table, cast(str, agreed.quantity), cast(str, agreed.reference)
 
 
 def import_frfs(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str] | None = None,
