@@ -30,15 +30,17 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from workbench.model.assembly import assemble  # noqa: E402
-from workbench.identify.bayes import bayes_identify, save_posterior  # noqa: E402
-from workbench.io.campaign import frf_set, load_campaign  # noqa: E402
 from workbench.extraction.modes import extract_tests  # noqa: E402
-from workbench.model.frame import read_frame  # noqa: E402
-from workbench.identify.moments import FrequencyData  # noqa: E402
+from workbench.extraction.records import MeasuredModes  # noqa: E402
+from workbench.identify.bayes import bayes_identify  # noqa: E402
+from workbench.io.campaign import frf_set, load_campaign  # noqa: E402
+from workbench.io.outputs import write_outputs  # noqa: E402
+from workbench.model.assembly import assemble  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.modal import model_modes  # noqa: E402
 from workbench.rig.simulate import truth_path  # noqa: E402
 from workbench.uq.stochastic import track_modes  # noqa: E402
+from workbench.workflow.posterior import POSTERIOR_FILE, posterior_netcdf  # noqa: E402
 
 
 def gamma_campaign(n_tests: int, mean_pa: float, cov: float, noise: float, seed: int):
@@ -53,8 +55,8 @@ def gamma_campaign(n_tests: int, mean_pa: float, cov: float, noise: float, seed:
         index, _ = track_modes(nominal, modes, model.mass)
         f[t] = modes.frequency_hz[index]
     f *= 1.0 + noise * rng.standard_normal(f.shape)
-    data = FrequencyData.from_tests(list(range(1, n_tests + 1)), np.arange(1, 11), f,
-                                    source=f"synthetic one-bolt, {n_tests} tests")
+    data = MeasuredModes(f, modes=np.arange(1, 11), tests=tuple(range(1, n_tests + 1)),
+                         source=f"synthetic one-bolt, {n_tests} tests")
     return model, data, moduli
 
 
@@ -64,7 +66,8 @@ def extracted(directory: Path):
     _, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
                                  {t: s.values for t, s in sets.items()}, campaign.quantity)
     f = np.array([[e.frequency_hz for e in estimates[t]] for t in campaign.test_ids])
-    data = FrequencyData.from_tests(campaign.test_ids, np.arange(1, f.shape[1] + 1), f, source=str(directory.name))
+    data = MeasuredModes(f, modes=np.arange(1, f.shape[1] + 1), tests=tuple(campaign.test_ids),
+                         source=str(directory.name))
     return assemble(campaign.frame), data
 
 
@@ -93,11 +96,12 @@ def main() -> None:
 
     model, data, moduli = gamma_campaign(40, 24e9, 0.09, 5e-4, seed=2024 + args.seed)
     post = bayes_identify(model, data, start=[72e9], seed=args.seed)
-    print(f"(a) sample of the 40 drawn moduli: mean {moduli.mean() / 1e9:.2f} GPa, CoV {moduli.std(ddof=1) / moduli.mean():.3f}")
+    print(f"(a) sample of the 40 drawn moduli: mean {moduli.mean() / 1e9:.2f} GPa, "
+          f"CoV {moduli.std(ddof=1) / moduli.mean():.3f}")
     report("(a) synthetic one-bolt, 40 tests from Gamma(24 GPa, CoV 0.09), start 72 GPa", post,
            {"vertical": (24e9, 0.09)})
     if args.out:
-        save_posterior(post, args.out / "one_bolt_synthetic")
+        write_outputs(args.out / "one_bolt_synthetic", {POSTERIOR_FILE: posterior_netcdf(post)}, force=True)
 
     directory = REPO / "campaigns" / "two_bolt_table5"
     t0 = time.perf_counter()
@@ -111,7 +115,7 @@ def main() -> None:
     post = bayes_identify(model, data, seed=args.seed)
     report("(b) two_bolt_table5 (extracted), truth = sample moments of the rig's moduli", post, truth)
     if args.out:
-        save_posterior(post, args.out / "two_bolt_table5")
+        write_outputs(args.out / "two_bolt_table5", {POSTERIOR_FILE: posterior_netcdf(post)}, force=True)
 
 
 if __name__ == "__main__":

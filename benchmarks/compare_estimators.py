@@ -30,7 +30,7 @@ Synthetic model (the truth)
   (``benchmarks/circlefit_snr.py``: 90th percentile below 1e-4 on well-separated ideal modes; the
   frame's closer, lighter-damped modes are taken twice as noisy). Beside the joint's own scatter
   (c = 0.09 moves f_1 by about 2 %) this noise is small.
-* A campaign is a `FrequencyData` (a ``modes.csv``-level campaign: per-test frequencies of modes
+* A campaign is a `MeasuredModes` (a ``modes.csv``-level campaign: per-test frequencies of modes
   1-10). FRF synthesis and the circle-fit extraction are skipped for cost; ``workbench identify``
   on an FRF campaign adds the extraction step, whose accuracy and time are measured elsewhere
   (``benchmarks/circlefit_snr.py``, ``benchmarks/bayes_demo.py``).
@@ -99,10 +99,10 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse
-import inspect  # noqa: E402
+import argparse  # noqa: E402
 import csv  # noqa: E402
 import dataclasses  # noqa: E402
+import inspect  # noqa: E402
 import logging  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
@@ -113,13 +113,14 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from workbench.identify.bayes import bayes_identify, load_arviz  # noqa: E402
 from workbench.model.assembly import assemble  # noqa: E402
-from workbench.identify.bayes import bayes_identify  # noqa: E402
 
 _BAYES_DEFAULTS = inspect.signature(bayes_identify).parameters
 STEPS, BURN = _BAYES_DEFAULTS["steps"].default, _BAYES_DEFAULTS["burn"].default  # the library's own
-from workbench.model.frame import read_frame  # noqa: E402
-from workbench.identify.moments import FrequencyData, moment_matching  # noqa: E402
+from workbench.extraction.records import MeasuredModes  # noqa: E402
+from workbench.identify.moments import moment_matching  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.modal import model_modes  # noqa: E402
 from workbench.uq.stochastic import JointModel, tracked_frequencies  # noqa: E402
 
@@ -154,13 +155,6 @@ RUN_FIELDS = ["design", "campaign", "seed", "estimator", "start_pa", "sample_mea
               "ref_E_lo_pa", "ref_E_hi_pa", "ref_cov_lo", "ref_cov_hi"]
 
 
-def _arviz():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)  # arviz announces its 1.0 refactor on import
-        import arviz
-    return arviz
-
-
 # --------------------------------------------------------------------------------- campaigns
 
 _CACHE: dict = {}
@@ -185,14 +179,14 @@ def _setup(frame_path: Path = FRAME):
 
 
 def synthetic_campaign(n_tests: int, seed: int, noise: float = NOISE, frame_path: Path = FRAME):
-    """One campaign: (FrequencyData, drawn moduli (n_tests,) in Pa)."""
+    """One campaign: (MeasuredModes, drawn moduli (n_tests,) in Pa)."""
     model, nominal, _ = _setup(frame_path)
     rng = np.random.default_rng((seed, n_tests))
     gammas = JointModel(model.joint_names, np.array([TRUE_COV])).sample(n_tests, rng)
     f, _ = tracked_frequencies(model, nominal, gammas)
     f = f * (1.0 + noise * rng.standard_normal(f.shape))
-    data = FrequencyData.from_tests(list(range(1, n_tests + 1)), np.arange(1, N_MODES + 1), f,
-                                    source=f"synthetic one-bolt, {n_tests} tests, seed {seed}")
+    data = MeasuredModes(f, modes=np.arange(1, N_MODES + 1), tests=tuple(range(1, n_tests + 1)),
+                         source=f"synthetic one-bolt, {n_tests} tests, seed {seed}")
     return data, gammas[:, 0] * TRUE_E_PA
 
 
@@ -257,7 +251,7 @@ def run_campaign(n_tests: int, campaign: int, base_seed: int = 1000, steps: int 
                  "ess_cov": math.nan, "evaluations_or_walkers": int(fit.evaluations)})
 
     t0 = time.perf_counter()
-    post = bayes_identify(start_model, data, seed=seed, steps=steps, burn=burn, walkers=walkers, progress=False)
+    post = bayes_identify(start_model, data, seed=seed, steps=steps, burn=burn, walkers=walkers)
     wall = time.perf_counter() - t0
     names = list(post.parameter_names)
     i_e, i_c = names.index(f"youngs_modulus_{post.groups[0]}"), names.index(f"cov_{post.groups[0]}")
@@ -386,7 +380,7 @@ def format_summary(summary: list[dict]) -> str:
 
 def arviz_sampling_summary(rows: list[dict]):
     """``arviz.summary`` of the estimates across campaigns (campaigns as draws of one chain)."""
-    az = _arviz()
+    az = load_arviz()
     out = {}
     for design in sorted({r["design"] for r in rows}):
         data = {}
@@ -486,7 +480,7 @@ def comparison_figure(rows: list[dict]):
 
 def forest_figure(posteriors: dict):
     """``arviz.plot_forest`` of the first campaigns' posteriors of E and CoV, one column per design."""
-    az = _arviz()
+    az = load_arviz()
     from workbench.report.page import plt
 
     designs = sorted(posteriors)

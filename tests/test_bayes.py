@@ -9,19 +9,21 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import REPO
 from scipy import stats
 from scipy.integrate import quad
 from scipy.special import gammaln
 
-from workbench.model.assembly import assemble
-from workbench.identify.bayes import (LikelihoodModel, bayes_identify, likelihood_model, run_ensemble, save_posterior)
+from workbench.extraction.records import MeasuredModes
+from workbench.identify.bayes import bayes_identify, run_ensemble
+from workbench.identify.likelihood import LikelihoodModel, gamma_log_density, likelihood_model
 from workbench.identify.surrogate import forward_table
-from workbench.model.frame import read_frame
-from workbench.identify.moments import FrequencyData
+from workbench.io.outputs import write_outputs
+from workbench.model.assembly import assemble
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
 from workbench.uq.stochastic import track_modes
-
-from conftest import REPO
+from workbench.workflow.posterior import posterior_netcdf
 
 ONE_BOLT = REPO / "frames" / "one_bolt_vertical.toml"
 TWO_BOLT = REPO / "frames" / "two_bolt.toml"
@@ -44,7 +46,7 @@ def synthetic(path, means_pa, covs, n_tests, noise, seed, count=10):
         index, _ = track_modes(nominal, modes, model.mass)
         f[t] = modes.frequency_hz[index]
     f *= 1.0 + noise * rng.standard_normal(f.shape)
-    data = FrequencyData.from_tests(list(range(1, n_tests + 1)), np.arange(1, count + 1), f, source="synthetic")
+    data = MeasuredModes(f, modes=np.arange(1, count + 1), tests=tuple(range(1, n_tests + 1)), source="synthetic")
     return model, data, moduli
 
 
@@ -59,16 +61,25 @@ def one_joint():
 
 def test_moments_only_campaign_is_refused():
     model = assemble(read_frame(ONE_BOLT))
-    data = FrequencyData(np.arange(1, 4), np.array([26.0, 126.3, 186.1]), np.array([0.1, 0.02, 0.5]),
+    data = MeasuredModes(np.array([[26.0, 126.3, 186.1]]), published_std_hz=np.array([0.1, 0.02, 0.5]),
                          source="campaigns/paper_table3_one_bolt_vertical")
     with pytest.raises(ValueError, match=r"paper_table3_one_bolt_vertical: bayes needs every test's frequencies "
                                          r"\(modes.csv or FRFs\); this campaign has only published moments"):
         bayes_identify(model, data)
 
 
+def test_unusable_tests_are_refused_before_any_work():
+    model = assemble(read_frame(ONE_BOLT))
+    f = np.array([[26.0, 126.0], [26.1, np.nan], [25.9, np.nan]])
+    sparse = MeasuredModes(f, tests=("t1", "t2", "t3"), source="sparse")
+    for identify in (bayes_identify, likelihood_model):
+        with pytest.raises(ValueError, match=r"^sparse: modes \[2\] were extracted in fewer than 2 tests$"):
+            identify(model, sparse)
+
+
 def test_import_pulls_in_neither_pandas_nor_emcee():
-    code = ("import sys, workbench.identify.bayes; print(','.join(m for m in ('pandas', 'matplotlib', 'emcee', 'arviz') "
-            "if m in sys.modules))")
+    code = ("import sys, workbench.identify.bayes, workbench.identify.likelihood; "
+            "print(','.join(m for m in ('pandas', 'matplotlib', 'emcee', 'arviz') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == ""
     assert done.stderr == ""
@@ -97,6 +108,22 @@ def test_same_seed_same_chain_and_different_seed_differs():
     c = run_ensemble(gaussian(MEAN, COV), start, 60, 20, seed=6).get_chain()
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_progress_is_reported_per_step_and_the_chain_is_emcee_run_mcmc_s():
+    import emcee
+
+    start = np.random.default_rng(0).standard_normal((16, 3))
+    calls = []
+    chain = run_ensemble(gaussian(MEAN, COV), start, 30, 10, seed=5,
+                         progress=lambda *call: calls.append(call)).get_chain()
+    assert calls == [("emcee", k, 40) for k in range(1, 41)]
+    np.testing.assert_array_equal(chain, run_ensemble(gaussian(MEAN, COV), start, 30, 10, seed=5).get_chain())
+    sampler = emcee.EnsembleSampler(16, 3, gaussian(MEAN, COV), vectorize=True, moves=[(emcee.moves.DEMove(), 1.0)])
+    state = sampler.run_mcmc(emcee.State(start, random_state=np.random.RandomState(5).get_state()), 10)
+    sampler.reset()
+    sampler.run_mcmc(state, 30)
+    np.testing.assert_array_equal(chain, sampler.get_chain())
 
 
 def test_sampler_recovers_a_gaussian_toy_posterior_and_rejects_a_wrong_one():
@@ -129,7 +156,7 @@ def test_full_identification_is_reproducible_per_seed(tmp_path, one_joint):
     assert not np.array_equal(chain, c.idata.posterior["youngs_modulus_vertical"].values)
     assert a.seed == 3 and a.idata.attrs["seed"] == 3
     # the NetCDF file round-trips, intervals included
-    path = save_posterior(a, tmp_path)
+    (path,) = write_outputs(tmp_path, {"posterior.nc": posterior_netcdf(a)})
     assert path == tmp_path / "posterior.nc" and not list(tmp_path.glob(".*tmp"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
@@ -144,6 +171,15 @@ def test_full_identification_is_reproducible_per_seed(tmp_path, one_joint):
 
 
 # ------------------------------------------------------------------------------------- likelihood
+
+def test_gamma_log_density_is_the_gamma_law_of_log_y():
+    z = np.linspace(-0.5, 0.4, 7)
+    shape, log_scale = 1 / 0.2**2, np.log(1.1 * 0.2**2)
+    log_density, e = gamma_log_density(z, shape, log_scale)
+    expected = stats.gamma.logpdf(np.exp(z), shape, scale=np.exp(log_scale)) + z  # + log |dY/dz|
+    np.testing.assert_allclose(log_density - gammaln(shape), expected, rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(e, np.exp(z - log_scale), rtol=1e-15)
+
 
 def brute_force_test_log_likelihood(lm: LikelihoodModel, theta: np.ndarray, t: int) -> float:
     """One test's marginal log-likelihood by adaptive quadrature (scipy.integrate.quad) over z = log(Y / Y0)."""
@@ -185,7 +221,7 @@ def test_missing_frequencies_are_skipped(one_joint):
     model, data, lm, _ = one_joint
     f = np.array(data.frequency_hz)
     f[0, 2] = np.nan
-    holey = FrequencyData.from_tests(data.tests, data.modes, f, source="holey")
+    holey = MeasuredModes(f, modes=data.modes, tests=data.tests, source="holey")
     lm2, _ = likelihood_model(model, holey, start=[72e9])
     theta = np.r_[0.0, np.log(0.09), np.full(lm.fbar.size, np.log(5e-4))]
     ll = lm2.test_log_likelihood(theta[None])[0]

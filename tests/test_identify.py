@@ -11,23 +11,19 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import CLAMP, REPO, SHARED, straight_beam
 
+from workbench.extraction.records import MeasuredModes
+from workbench.identify.data import check_moments, joint_groups
+from workbench.identify.moments import DEFAULT_START_COV, moment_matching
+from workbench.identify.nominal import nominal_fit
+from workbench.identify.record import identification_record
 from workbench.model.assembly import assemble
-from workbench.model.frame import read_frame
-from workbench.identify.moments import (
-    DEFAULT_START_COV,
-    FrequencyData,
-    identification_record,
-    joint_groups,
-    model_at_moduli,
-    moment_matching,
-    nominal_fit,
-)
+from workbench.model.frame_file import read_frame
+from workbench.model.joints import joint_scale, model_at_moduli
 from workbench.model.modal import model_modes
 from workbench.uq.smr import adaptive, sensitivities, smr1
 from workbench.uq.stochastic import JointModel, quadrature_reference, tracked_frequencies
-
-from conftest import CLAMP, REPO, SHARED, straight_beam
 
 FRAMES = REPO / "frames"
 TABLE3 = SHARED / "paper" / "table3_single_bolt_vertical_moments.csv"
@@ -55,13 +51,29 @@ def _frame_at(frame, moduli: dict[str, float]):
     return dataclasses.replace(frame, joints=joints)
 
 
-def _exact_moments(model, mean_pa, cov, count: int) -> FrequencyData:
+def _moments(modes, mean_hz, std_hz, source: str) -> MeasuredModes:
+    """Published moments: one row of means and their deviations."""
+    return MeasuredModes(np.asarray(mean_hz, float)[None, :], modes=np.asarray(modes),
+                         published_std_hz=np.asarray(std_hz, float), source=source)
+
+
+def _tests(tests, modes, frequency_hz, source: str) -> MeasuredModes:
+    """Per-test frequencies (n_tests, n_modes), NaN where a mode was not extracted."""
+    return MeasuredModes(np.asarray(frequency_hz, float), modes=np.asarray(modes), tests=tuple(tests), source=source)
+
+
+def _at_group_moduli(model, groups, mean_pa):
+    """The model with each group's joints at that group's modulus."""
+    return model_at_moduli(model, groups.per_joint(np.asarray(mean_pa, float), len(model.frame.joints)))
+
+
+def _exact_moments(model, mean_pa, cov, count: int) -> MeasuredModes:
     """Exact moments (tensor Gauss quadrature over full eigen-solves) at known (mean, cov) per group."""
     groups = joint_groups(model.frame)
-    at = model_at_moduli(model, groups, mean_pa)
+    at = _at_group_moduli(model, groups, mean_pa)
     joints = JointModel(model.joint_names, groups.per_joint(np.asarray(cov), len(model.joint_names)))
     q = quadrature_reference(at, joints, count)
-    return FrequencyData(np.arange(1, count + 1), q.mean_hz, q.std_hz, source="synthetic")
+    return _moments(np.arange(1, count + 1), q.mean_hz, q.std_hz, source="synthetic")
 
 
 @pytest.fixture(scope="module")
@@ -71,8 +83,8 @@ def one_bolt_moments_fit(one_bolt):
 
 
 def test_identify_stays_free_of_pandas_and_matplotlib():
-    code = ("import sys, workbench.identify.moments; print(','.join(m for m in ('pandas', 'matplotlib') "
-            "if m in sys.modules))")
+    code = ("import sys, workbench.identify.moments, workbench.identify.record; "
+            "print(','.join(m for m in ('pandas', 'matplotlib') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "" and done.stderr == ""
 
@@ -82,7 +94,7 @@ def test_identify_stays_free_of_pandas_and_matplotlib():
 def test_model_at_moduli_is_the_reassembled_frame(two_bolt):
     groups = joint_groups(two_bolt.frame)
     target = {"A": 11.5e9, "B": 150e9}
-    at = model_at_moduli(two_bolt, groups, [target["A"], target["B"]])
+    at = _at_group_moduli(two_bolt, groups, [target["A"], target["B"]])
     ref = assemble(_frame_at(two_bolt.frame, target))
     for k_at, k_ref in zip(at.stiffness_joints, ref.stiffness_joints):
         assert abs(k_at - k_ref).max() <= 1e-12 * abs(k_ref).max()
@@ -102,12 +114,12 @@ def test_smr_at_candidate_mean_matches_exact_quadrature(one_bolt):
     mean, cov = 11.5e9, 0.09
     joints = JointModel(one_bolt.joint_names, np.array([cov]))
     exact = quadrature_reference(assemble(_frame_at(one_bolt.frame, {"A": mean})), joints, 9)
-    at = model_at_moduli(one_bolt, groups, [mean])
+    at = _at_group_moduli(one_bolt, groups, [mean])
     ours = adaptive(at, joints, 9)
     assert np.max(np.abs(ours.mean_hz / exact.mean_hz - 1)) < 1e-4
     assert np.max(np.abs(ours.std_hz / exact.std_hz - 1)) < 0.01
     # SMR1 only needs the scaled nominal solve: sensitivities(model, count, gamma) is the same algebra
-    scaled = smr1(one_bolt, joints, 9, sens=sensitivities(one_bolt, 9, groups.gamma_scale(np.array([mean]), 1)))
+    scaled = smr1(one_bolt, joints, 9, sens=sensitivities(one_bolt, 9, joint_scale(one_bolt.frame, np.array([mean]))))
     assert np.allclose(scaled.mean_hz, smr1(at, joints, 9).mean_hz, rtol=1e-9)
     assert np.allclose(scaled.std_hz, smr1(at, joints, 9).std_hz, rtol=1e-6)
 
@@ -117,7 +129,7 @@ def test_smr_at_candidate_mean_matches_exact_quadrature(one_bolt):
 @pytest.mark.parametrize("start_pa", [10 * TRUTH_PA, TRUTH_PA / 10])
 def test_nominal_fit_recovers_the_modulus_from_a_start_ten_times_off(one_bolt, start_pa):
     f = model_modes(one_bolt, 9, np.array([TRUTH_PA / 24e9])).frequency_hz
-    data = FrequencyData(np.arange(1, 10), f, np.full(9, 0.1), source="synthetic")
+    data = _moments(np.arange(1, 10), f, np.full(9, 0.1), source="synthetic")
     fit = nominal_fit(one_bolt, data, start_pa=[start_pa])
     assert abs(fit.moduli_pa[0] / TRUTH_PA - 1) < NOMINAL_RTOL
     assert fit.rms_relative_error < 1e-8
@@ -125,7 +137,7 @@ def test_nominal_fit_recovers_the_modulus_from_a_start_ten_times_off(one_bolt, s
 
 def test_nominal_fit_residuals_are_the_measured_minus_model_frequencies(one_bolt):
     measured = np.array([26.0, 126.26, 186.06, 279.70, 442.28])
-    fit = nominal_fit(one_bolt, FrequencyData(np.arange(1, 6), measured, np.zeros(5), source="t2"))
+    fit = nominal_fit(one_bolt, _moments(np.arange(1, 6), measured, np.zeros(5), source="t2"))
     model_hz = model_modes(one_bolt, 5, np.array([fit.moduli_pa[0] / 24e9])).frequency_hz
     assert np.allclose(fit.model_hz, model_hz, rtol=1e-12)
     assert np.allclose(fit.residual_hz, measured - model_hz, rtol=0, atol=1e-9)
@@ -140,7 +152,7 @@ def test_nominal_fit_pairs_by_mac_when_the_order_is_wrong(one_bolt):
     modes = model_modes(one_bolt, 6, truth)
     dofs = [one_bolt.dof(s.point, s.dof) for s in one_bolt.frame.sensors]
     order = np.array([1, 0, 2, 3])  # measured modes 1 and 2 listed the wrong way round
-    data = FrequencyData(np.arange(1, 5), modes.frequency_hz[order], np.zeros(4), source="swapped")
+    data = _moments(np.arange(1, 5), modes.frequency_hz[order], np.zeros(4), source="swapped")
     fit = nominal_fit(one_bolt, data, pairing="mac", measured_shapes=modes.shapes[dofs][:, order],
                       start_pa=[TRUTH_PA * 10])
     assert fit.model_modes.tolist() == [2, 1, 3, 4]
@@ -151,7 +163,7 @@ def test_nominal_fit_pairs_by_mac_when_the_order_is_wrong(one_bolt):
 def test_nominal_fit_two_groups(two_bolt):
     truth = np.array([15e9, 50e9])
     f = model_modes(two_bolt, 8, truth / np.array([24e9, 73.5e9])).frequency_hz
-    fit = nominal_fit(two_bolt, FrequencyData(np.arange(1, 9), f, np.zeros(8), source="synthetic"),
+    fit = nominal_fit(two_bolt, _moments(np.arange(1, 9), f, np.zeros(8), source="synthetic"),
                       start_pa=[240e9, 7.35e9])
     assert np.allclose(fit.moduli_pa, truth, rtol=NOMINAL_RTOL)
 
@@ -168,7 +180,7 @@ def test_moment_matching_recovers_mean_and_cov_from_a_poor_start(one_bolt_moment
 def test_moment_matching_residuals_and_eps_by_hand(one_bolt, one_bolt_moments_fit):
     data, fit = one_bolt_moments_fit
     joints = JointModel(one_bolt.joint_names, fit.cov)
-    smr = adaptive(model_at_moduli(one_bolt, fit.groups, fit.mean_pa), joints, 6)
+    smr = adaptive(_at_group_moduli(one_bolt, fit.groups, fit.mean_pa), joints, 6)
     assert np.allclose(fit.mean_hz, smr.mean_hz, rtol=1e-12)
     assert np.allclose(fit.std_hz, smr.std_hz, rtol=1e-9)
     delta = smr.std_hz / smr.mean_hz
@@ -205,11 +217,11 @@ def test_moment_matching_intervals_from_per_test_data(one_bolt):
     the CoV its sample CoV (sd about cov / sqrt(2 (n - 1)))."""
     n = 40
     groups = joint_groups(one_bolt.frame)
-    at = model_at_moduli(one_bolt, groups, [TRUTH_PA])
+    at = _at_group_moduli(one_bolt, groups, [TRUTH_PA])
     joints = JointModel(one_bolt.joint_names, np.array([TRUTH_COV]))
     gammas = joints.sample(n, np.random.default_rng(8))
     freqs, _ = tracked_frequencies(at, model_modes(at, 5), gammas)
-    data = FrequencyData.from_tests([f"t{i}" for i in range(n)], np.arange(1, 6), freqs, source="synthetic tests")
+    data = _tests([f"t{i}" for i in range(n)], np.arange(1, 6), freqs, source="synthetic tests")
     fit = moment_matching(one_bolt, data, seed=3)
     assert fit.seed == 3
     (m_lo, m_hi), (c_lo, c_hi) = fit.mean_ci95[0], fit.cov_ci95[0]
@@ -226,7 +238,7 @@ def test_moment_bootstrap_is_seeded(one_bolt):
 
     f = np.random.default_rng(1).normal(100.0, 1.0, size=(12, 3))
     f[0, 1] = np.nan  # a mode missed in one test
-    data = FrequencyData.from_tests(list(range(12)), [1, 2, 3], f, source="x")
+    data = _tests(list(range(12)), [1, 2, 3], f, source="x")
     a, b = _moment_covariance(data, 500, 11), _moment_covariance(data, 500, 11)
     assert np.array_equal(a, b) and a.shape == (6, 6) and np.all(np.isfinite(a))
     assert not np.array_equal(a, _moment_covariance(data, 500, 12))
@@ -240,7 +252,7 @@ def _one_line(excinfo) -> bool:
 
 
 def test_bad_inputs_give_one_line_value_errors(one_bolt):
-    data = FrequencyData(np.arange(1, 4), np.array([26.0, 126.0, 186.0]), np.array([0.1, 0.02, 0.5]), source="x")
+    data = _moments(np.arange(1, 4), np.array([26.0, 126.0, 186.0]), np.array([0.1, 0.02, 0.5]), source="x")
     beam = assemble(straight_beam(0.5, [{"point": "a", **CLAMP}]))
     cases = [
         lambda: nominal_fit(beam, data),  # no joints
@@ -252,18 +264,31 @@ def test_bad_inputs_give_one_line_value_errors(one_bolt):
         lambda: nominal_fit(one_bolt, data, pairing="mac", measured_shapes=np.ones((5, 2))),  # 3 modes, 2 shapes
         lambda: nominal_fit(one_bolt, data, pairing="mac"),
         lambda: nominal_fit(one_bolt, data, pairing="frequency"),
-        lambda: nominal_fit(one_bolt, FrequencyData(np.array([1, 2, 999]), data.mean_hz, data.std_hz, source="x")),
-        lambda: nominal_fit(one_bolt, FrequencyData(np.array([1, 1, 2]), data.mean_hz, data.std_hz, source="x")),
+        lambda: nominal_fit(one_bolt, _moments(np.array([1, 2, 999]), data.mean_hz, data.std_hz, source="x")),
+        lambda: nominal_fit(one_bolt, _moments(np.array([1, 1, 2]), data.mean_hz, data.std_hz, source="x")),
         lambda: moment_matching(one_bolt, data, cov_bounds=(0.0, 0.6)),
         lambda: moment_matching(one_bolt, data, start=(None, [np.nan])),
         lambda: moment_matching(one_bolt, data, method="mc"),
-        lambda: FrequencyData(np.arange(1, 4), np.array([26.0, np.nan, 186.0]), np.ones(3), source="x"),
-        lambda: FrequencyData(np.arange(1, 4), np.array([26.0, 126.0]), np.ones(2), source="x"),
+        lambda: nominal_fit(one_bolt, _moments(np.arange(1, 4), np.array([26.0, np.nan, 186.0]), np.ones(3), "x")),
+        lambda: moment_matching(one_bolt, _moments(np.arange(1, 4), np.array([26.0, np.nan, 186.0]), np.ones(3), "x")),
+        lambda: _moments(np.arange(1, 4), np.array([26.0, 126.0]), np.ones(2), source="x"),
     ]
     for case in cases:
         with pytest.raises(ValueError) as excinfo:
             case()
         assert _one_line(excinfo), str(excinfo.value)
+
+
+def test_measured_modes_are_checked_at_every_entry_point(one_bolt):
+    """`check_moments` refuses what cannot give moments, before any model run."""
+    with pytest.raises(ValueError, match=r"^one test: at least 2 tests are needed for moments, got 1$"):
+        check_moments(_tests(["t1"], [1, 2], [[26.0, 126.0]], "one test"))
+    sparse = _tests(["t1", "t2", "t3"], [1, 2], [[26.0, 126.0], [26.1, np.nan], [25.9, np.nan]], "sparse")
+    for identify in (nominal_fit, moment_matching):
+        with pytest.raises(ValueError, match=r"^sparse: modes \[2\] were extracted in fewer than 2 tests$"):
+            identify(one_bolt, sparse)
+    with pytest.raises(ValueError, match=r"^x: mean_hz: expected 3 finite values"):
+        check_moments(_moments([1, 2, 3], [26.0, np.nan, 186.0], np.ones(3), "x"))
 
 
 # ---- identification.json --------------------------------------------------------------------
@@ -291,12 +316,12 @@ def test_identification_record_has_the_contract_structure(one_bolt_moments_fit):
 
 # ---- real data: the paper's Table 3 campaign ------------------------------------------------
 
-@pytest.mark.skipif(not TABLE3.exists(), reason="the shared paper tables are absent")
+@pytest.mark.shared("paper/table3_single_bolt_vertical_moments.csv")
 def test_moment_matching_on_table3(one_bolt):
     with TABLE3.open() as handle:
         rows = list(csv.DictReader(handle))
-    data = FrequencyData(np.array([int(r["mode"]) for r in rows]), np.array([float(r["mean_hz"]) for r in rows]),
-                         np.array([float(r["std_hz"]) for r in rows]), source=TABLE3.name)
+    data = _moments(np.array([int(r["mode"]) for r in rows]), np.array([float(r["mean_hz"]) for r in rows]),
+                    np.array([float(r["std_hz"]) for r in rows]), source=TABLE3.name)
     fit = moment_matching(one_bolt, data)
     # recorded (see benchmarks/identify_table3.py): E[Y] = 11.83 GPa, CoV = 0.0722; paper Table 4: 24 GPa, 0.09
     mean, cov = fit.mean_pa[0], fit.cov[0]
@@ -318,14 +343,14 @@ def test_both_estimators_recover_the_two_joint_model_of_the_table5_campaign():
     law not being a Gamma law), and the truth lies inside the Bayesian 95 % intervals."""
     import json
 
-    from workbench.model.assembly import assemble
     from workbench.identify.bayes import bayes_identify
     from workbench.io.campaign import load_campaign
-    from workbench.workflow.measured import frequency_data
+    from workbench.model.assembly import assemble
+    from workbench.workflow.measured import measured_modes
 
     directory = REPO / "campaigns" / "two_bolt_table5"
     campaign = load_campaign(directory)
-    data = frequency_data(campaign, count=9)
+    data = measured_modes(campaign, 9, "identify from")
     model = assemble(campaign.frame)
     truth = json.loads(directory.with_name("two_bolt_table5.truth.json").read_text())
     moduli = np.array([[t["moduli_pa"]["A"], t["moduli_pa"]["B"]] for t in truth["tests"]])

@@ -11,35 +11,40 @@ nodes is 2e-11 (one joint, degree 20) and 1e-9 (two joints, degree 12).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 
-from workbench.model.assembly import with_joint_scale
+from workbench.model.assembly import Model
+from workbench.model.joints import model_at_moduli
 from workbench.model.modal import model_modes
 from workbench.uq.smr import sensitivities, smr2_frequencies
 from workbench.uq.stochastic import tracked_frequencies
 
-__all__ = ["TABLE_DEGREE", "ForwardTable", "model_at", "frequencies_at", "forward_table"]
+__all__ = ["TABLE_DEGREE", "ForwardTable", "frequencies_at", "forward_table"]
 
 TABLE_DEGREE = {1: 20, 2: 12}  # interpolation error measured 2e-11 (one joint), 1e-9 (two joints)
 
 
-def _cheb(x: np.ndarray, degree: int, derivative: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """Chebyshev T_0..T_degree at x (..., ) -> (..., degree + 1), and their derivatives."""
+def _cheb(x: np.ndarray, degree: int) -> np.ndarray:
+    """Chebyshev T_0..T_degree at x (..., ) -> (..., degree + 1)."""
     t = np.empty(x.shape + (degree + 1,))
     t[..., 0] = 1.0
     if degree:
         t[..., 1] = x
     for n in range(2, degree + 1):
         t[..., n] = 2.0 * x * t[..., n - 1] - t[..., n - 2]
-    if not derivative:
-        return t, None
+    return t
+
+
+def _cheb_derivative(x: np.ndarray, t: np.ndarray, degree: int) -> np.ndarray:
+    """Derivatives of T_0..T_degree at x, from their values ``t = _cheb(x, degree)``, (..., degree + 1)."""
     d = np.zeros_like(t)
     if degree:
         d[..., 1] = 1.0
     for n in range(2, degree + 1):  # T_n' = 2 T_(n-1) + 2 x T_(n-1)' - T_(n-2)'
         d[..., n] = 2.0 * t[..., n - 1] + 2.0 * x * d[..., n - 1] - d[..., n - 2]
-    return t, d
+    return d
 
 
 @dataclass(frozen=True)
@@ -66,17 +71,24 @@ class ForwardTable:
     def degree(self) -> int:
         return self.coef.shape[0] - 1
 
-    def __call__(self, z: np.ndarray, grad: bool = False):
+    @overload
+    def __call__(self, z: np.ndarray, grad: Literal[False] = False) -> np.ndarray: ...
+
+    @overload
+    def __call__(self, z: np.ndarray, grad: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def __call__(self, z: np.ndarray, grad: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """``f`` (..., n_modes) at ``z`` (..., r), and with ``grad`` its gradient (..., r, n_modes)."""
         z = np.asarray(z, float)
         r = self.lower.size
         half = 0.5 * (self.upper - self.lower)
         x = np.clip((z - 0.5 * (self.upper + self.lower)) / half, -1.0, 1.0)
-        t, d = _cheb(x, self.degree, grad)  # (..., r, n)
+        t = _cheb(x, self.degree)  # (..., r, n)
         if r == 1:
             f = t[..., 0, :] @ self.coef
             if not grad:
                 return f
+            d = _cheb_derivative(x, t, self.degree)
             return f, (d[..., 0, :] @ self.coef)[..., None, :] / half[0]
         if r == 2:
             n = self.degree + 1
@@ -88,19 +100,14 @@ class ForwardTable:
             f = contract(t[..., 0, :], t[..., 1, :])
             if not grad:
                 return f
+            d = _cheb_derivative(x, t, self.degree)
             g0 = contract(d[..., 0, :], t[..., 1, :]) / half[0]
             g1 = contract(t[..., 0, :], d[..., 1, :]) / half[1]
             return f, np.stack([g0, g1], axis=-2)
         raise ValueError(f"ForwardTable: {r} random joints; the table handles 1 or 2")
 
 
-def model_at(model, reference_pa: np.ndarray):
-    """``model`` with its joints' mean moduli at ``reference_pa`` (Pa): gamma = 1 there."""
-    file_pa = np.array([j.youngs_modulus for j in model.frame.joints])
-    return with_joint_scale(model, np.asarray(reference_pa, float) / file_pa)
-
-
-def frequencies_at(model0, modes: np.ndarray, gammas: np.ndarray, source: str = "exact") -> np.ndarray:
+def frequencies_at(model0: Model, modes: np.ndarray, gammas: np.ndarray, source: str = "exact") -> np.ndarray:
     """Eigenfrequencies (n_points, len(modes)) Hz of ``model0``'s modes (0-based) at joint scales ``gammas``.
 
     ``source`` "exact": eigen-solutions tracked by MAC against ``model0``'s modes; "smr2": the
@@ -115,13 +122,14 @@ def frequencies_at(model0, modes: np.ndarray, gammas: np.ndarray, source: str = 
     raise ValueError(f"forward: {source!r} is not 'exact' or 'smr2'")
 
 
-def forward_table(model, modes, reference_pa, lower, upper, degree: int | None = None,
-                  source: str = "exact") -> ForwardTable:
+def forward_table(model: Model, modes: np.ndarray, reference_pa: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                  degree: int | None = None, source: str = "exact") -> ForwardTable:
     """Build a `ForwardTable` of ``model``'s modes (0-based indices at ``reference_pa``).
 
     Parameters
     ----------
-    model : assembled model; all its joints are random (one ``z`` each).
+    model : assembled model; all its joints are random (one ``z`` each); moved to ``reference_pa``
+        (`workbench.model.joints.model_at_moduli`), where ``z = 0``.
     modes : (n_modes,) mode indices, sorted order at the reference point.
     reference_pa : (n_joints,) ``Y0``, Pa.
     lower, upper : (n_joints,) range of ``z = log(Y / Y0)``.
@@ -140,8 +148,8 @@ def forward_table(model, modes, reference_pa, lower, upper, degree: int | None =
     z_nodes = 0.5 * (upper + lower)[:, None] + 0.5 * (upper - lower)[:, None] * x[None, :]  # (r, n)
     grids = np.meshgrid(*z_nodes, indexing="ij")
     z = np.stack([g.ravel() for g in grids], axis=1)  # (n^r, r)
-    f = frequencies_at(model_at(model, reference_pa), modes, np.exp(z), source)
-    t, _ = _cheb(x, degree, False)  # (n, n): t[i, a] = T_a(x_i)
+    f = frequencies_at(model_at_moduli(model, reference_pa), modes, np.exp(z), source)
+    t = _cheb(x, degree)  # (n, n): t[i, a] = T_a(x_i)
     scale = np.full(n, 2.0 / n)
     scale[0] = 1.0 / n
     project = t.T * scale[:, None]  # (a, i)

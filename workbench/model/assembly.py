@@ -12,7 +12,7 @@ nominal model. Supports that are ``fixed`` remove their dof; every other matrix 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -20,8 +20,8 @@ import scipy.sparse as sp
 from workbench.model import elements
 from workbench.model.frame import DOF_NAMES, Frame, locate_point, member_length
 
-__all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "geometric_stiffness",
-           "element_energies", "joint_energies", "strain_energy", "with_joint_scale"]
+__all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "element_energies", "joint_energies",
+           "strain_energy"]
 
 
 @dataclass(frozen=True)
@@ -98,8 +98,8 @@ class Model:
     elements: ElementData
     spring_stiffness: np.ndarray
     stiffness_geometric: sp.csr_matrix
-    _position: np.ndarray = field(repr=False, compare=False, default=None)
-    _pattern: tuple = field(repr=False, compare=False, default=None)
+    _position: np.ndarray = field(init=False, repr=False, compare=False)
+    _pattern: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         position = np.full(self.mesh.dof_count, -1)
@@ -186,7 +186,9 @@ def mesh_frame(frame: Frame) -> Mesh:
         point_node[name] = len(node_xy)
         node_xy.append(xy)
 
-    conn, elem_member, elem_joint = [], [], []
+    conn: list[tuple[int, int]] = []
+    elem_member: list[int] = []
+    elem_joint: list[int] = []
     for mi, member in enumerate(frame.members):
         length = member_length(frame, member)
         x0 = np.array(frame.points[member.start])
@@ -245,7 +247,6 @@ def _element_properties(frame: Frame, mesh: Mesh) -> dict[str, np.ndarray]:
         "rho": np.array([m.density for m in mats])[em],
         "A": np.array([s.area for s in secs])[em],
         "I": np.array([s.second_moment for s in secs])[em],
-        "N": np.array([m.axial_force for m in members])[em],
     }
     joint_e = np.array([j.youngs_modulus for j in frame.joints] + [np.nan])
     in_joint = mesh.element_joint >= 0
@@ -278,20 +279,10 @@ def _assemble(matrices: np.ndarray, dofs: np.ndarray, size: int) -> sp.csr_matri
     return sp.csr_matrix((matrices.ravel(), (rows, cols)), shape=(size, size))
 
 
-def geometric_stiffness(model: Model, axial_force_n: dict[str, float]) -> sp.csr_matrix:
-    """Geometric stiffness on the free dofs for axial forces (N, tension positive) per member name.
-
-    Linear in the forces: the diagnosis fits a locked-in force by scaling this matrix.
-    """
-    return _geometric(model.frame, model.mesh, model.elements, axial_force_n)[model.free_dofs][:, model.free_dofs].tocsr()
-
-
-def _geometric(frame: Frame, mesh: Mesh, data: ElementData, axial_force_n: dict[str, float]) -> sp.csr_matrix:
-    names = [m.name for m in frame.members]
-    for name in axial_force_n:
-        if name not in names:
-            raise KeyError(f"{frame.source}: members: no member named {name!r}")
-    force = np.array([axial_force_n.get(n, 0.0) for n in names])[mesh.element_member]
+def _geometric(frame: Frame, mesh: Mesh, data: ElementData) -> sp.csr_matrix:
+    """Geometric stiffness of the members' locked-in axial forces (``Member.axial_force``), on all dofs."""
+    forces = {m.name: m.axial_force for m in frame.members if m.axial_force != 0.0}
+    force = np.array([forces.get(m.name, 0.0) for m in frame.members])[mesh.element_member]
     t = elements.rotation(data.cos, data.sin)
     kg = elements.to_global(elements.geometric_local(data.length, force), t)
     return _assemble(kg, data.dofs, mesh.dof_count)
@@ -352,24 +343,6 @@ def strain_energy(model: Model, shapes: np.ndarray, gamma: np.ndarray | None = N
     return rest + weight @ joints
 
 
-def with_joint_scale(model: Model, scale: np.ndarray) -> Model:
-    """``model`` with each joint zone's modulus multiplied by ``scale`` (n_joints,), without re-meshing.
-
-    Exactly the model assembled from the frame with those joint moduli: a joint zone's stiffness
-    is linear in its modulus, and the Timoshenko shear parameter does not depend on it. Its
-    ``gamma`` is then relative to the new moduli (the nominal point of SMR and of eq. 9).
-    """
-    scale = np.asarray(scale, float)
-    if scale.shape != (len(model.stiffness_joints),) or not np.all(np.isfinite(scale)) or np.any(scale <= 0):
-        raise ValueError(f"scale: expected {len(model.stiffness_joints)} finite positive values, got {scale}")
-    owner = model.mesh.element_joint
-    factor = np.where(owner >= 0, scale[np.maximum(owner, 0)], 1.0)
-    data = replace(model.elements, axial=model.elements.axial * factor, bending=model.elements.bending * factor)
-    joints = tuple(replace(j, youngs_modulus=float(j.youngs_modulus * s)) for j, s in zip(model.frame.joints, scale))
-    return replace(model, frame=replace(model.frame, joints=joints), elements=data,
-                   stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, model.stiffness_joints)))
-
-
 def assemble(frame: Frame) -> Model:
     """Assemble the mass, rest stiffness and joint stiffnesses of ``frame`` (eq. 3-4).
 
@@ -406,8 +379,7 @@ def assemble(frame: Frame) -> Model:
     for pm in frame.masses:
         node = mesh.point_node[pm.point]
         diag_m[3 * node: 3 * node + 3] += (pm.mass, pm.mass, pm.rotary_inertia)
-    forces = {m.name: m.axial_force for m in frame.members if m.axial_force != 0.0}
-    k_geo = _geometric(frame, mesh, data, forces)
+    k_geo = _geometric(frame, mesh, data)
     free = np.flatnonzero(~fixed)
 
     def reduce(a: sp.spmatrix) -> sp.csr_matrix:

@@ -1,0 +1,51 @@
+"""The ``identification.json`` record of an identification (CONTRACTS.md section 3)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+from workbench.model.frame import Frame
+
+__all__ = ["identification_record"]
+
+
+def identification_record(campaign_name: str, method: str, frame: Frame, fit: Any, modes_used: Iterable[int],
+                          wall_time_s: float) -> dict:
+    """The ``identification.json`` structure of CONTRACTS.md section 3.
+
+    ``fit`` either has ``joint_records()`` (the ``joints`` block itself, e.g. a Bayesian
+    `workbench.identify.bayes.Posterior`) or ``groups`` (`workbench.identify.data.JointGroups` of
+    ``frame``), ``mean_pa`` and ``cov`` ((n_groups,) each) and optionally ``mean_ci95`` /
+    ``cov_ci95`` ((n_groups, 2) or None), as a `workbench.identify.moments.MomentFit`. Every joint
+    of a group gets its group's values; joints are keyed by name, in the frame's order.
+
+    Parameters
+    ----------
+    campaign_name, method : written as given.
+    frame : the campaign's frame.
+    fit : the identification's result (above).
+    modes_used : mode numbers (1 = lowest) the fit used.
+    wall_time_s : the identification's wall time, s.
+    """
+    if hasattr(fit, "joint_records"):
+        joints = fit.joint_records()
+    else:
+        groups = fit.groups
+        n = len(frame.joints)
+        if sorted(j for members in groups.members for j in members) != list(range(n)):
+            raise ValueError(f"{frame.source}: fit groups {groups.members} do not cover the frame's {n} joints")
+        mean_ci, cov_ci = getattr(fit, "mean_ci95", None), getattr(fit, "cov_ci95", None)
+
+        def pair(ci, g):
+            return None if ci is None else [float(ci[g][0]), float(ci[g][1])]
+
+        group_of = {j: g for g, members in enumerate(groups.members) for j in members}
+        joints = {joint.name: {"youngs_modulus": float(fit.mean_pa[group_of[j]]), "cov": float(fit.cov[group_of[j]]),
+                               "youngs_modulus_ci95": pair(mean_ci, group_of[j]), "cov_ci95": pair(cov_ci, group_of[j])}
+                  for j, joint in enumerate(frame.joints) if j in group_of}
+    if list(joints) != list(frame.joint_names):
+        raise ValueError(f"{frame.source}: the fit's joints {list(joints)} are not the frame's "
+                         f"{list(frame.joint_names)}")
+    return {"campaign": str(campaign_name), "method": str(method), "joints": joints,
+            "modes_used": [int(m) for m in modes_used], "wall_time_s": float(wall_time_s)}
