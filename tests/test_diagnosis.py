@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from conftest import REPO
-from workbench.model.assembly import assemble
+
 from workbench.cli import main
-from workbench.diagnose.diagnosis import ModalData, diagnose, diagnosis_record, observations
-from workbench.rig.effects import Effect, apply_effect
-from workbench.model.frame import read_frame
+from workbench.diagnose.observations import observations
+from workbench.diagnose.verdict import GAP_RATIO, diagnose, diagnosis_record
+from workbench.extraction.records import MeasuredModes
+from workbench.model.assembly import assemble
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
+from workbench.rig.effects import Effect, apply_effect
 
 ONE_BOLT = REPO / "frames" / "one_bolt_vertical.toml"
 TWO_BOLT = REPO / "frames" / "two_bolt.toml"
@@ -37,21 +41,19 @@ def _data(frame, effect, seed=0, tests=6, noise=1e-4, count=8, amplitude=None, g
             gamma = np.where(real, gamma * gamma_of(t), 1.0)
         f = model_modes(article, count, gamma).frequency_hz
         rows.append(f * (1 + noise * rng.standard_normal(count)))
-    return ModalData(np.array(rows), amplitude=amplitude)
+    return MeasuredModes(np.array(rows), amplitude=amplitude)
 
 
 def test_correlated_scatter_is_not_read_as_a_gap():
     # Tests whose frequencies move together (a joint scattering from test to test): the errors of
     # the means are correlated across modes. Weighted by their covariance, a chance scatter stays
     # under the gap threshold; weighted by the standard errors alone, it crosses it often.
-    from workbench.diagnose.diagnosis import GAP_RATIO
-
     rng = np.random.default_rng(3)
     direction = np.linspace(1, 3, 8) * 1e-3
     full, diagonal = [], []
     for _ in range(300):
         common = rng.standard_normal((12, 1)) * direction + 2e-5 * rng.standard_normal((12, 8))
-        obs = observations(ModalData(100.0 * (1 + common)))
+        obs = observations(MeasuredModes(100.0 * (1 + common)))
         r = np.full(8, 100.0) / obs.frequency_hz[0] - 1  # the model is the truth
         full.append(float(r @ np.linalg.inv(obs.frequency_cov[0]) @ r) / 8)
         diagonal.append(float(np.sum((r / (obs.frequency_se[0] / obs.frequency_hz[0])) ** 2)) / 8)
@@ -64,7 +66,8 @@ def test_global_joint_shift_scales_every_joint():
     shifted = apply_effect(frame, Effect("joint_stiffness_shift", None, {"factor": 0.5}))
     assert [j.youngs_modulus for j in shifted.joints] == [0.5 * j.youngs_modulus for j in frame.joints]
     one = apply_effect(frame, Effect("joint_stiffness_shift", "B", {"factor": 0.5}))
-    assert [j.youngs_modulus for j in one.joints] == [frame.joints[0].youngs_modulus, 0.5 * frame.joints[1].youngs_modulus]
+    assert [j.youngs_modulus for j in one.joints] == [frame.joints[0].youngs_modulus,
+                                                      0.5 * frame.joints[1].youngs_modulus]
 
 
 CASES = [
@@ -84,7 +87,8 @@ def test_injected_effect_is_named_placed_and_sized(effect, name, value, toleranc
     assert best.parameters[name] == pytest.approx(value, rel=tolerance)
     assert result.shrinkage > 0.9
     # the contract's definition, on the ranking's own numbers
-    assert result.shrinkage == pytest.approx(1 - best.heldout_freq_rms_rel_error / result.baseline.heldout_freq_rms_rel_error)
+    baseline_error = result.baseline.heldout_freq_rms_rel_error
+    assert result.shrinkage == pytest.approx(1 - best.heldout_freq_rms_rel_error / baseline_error)
 
 
 def test_added_mass_on_a_member_is_found_between_mesh_nodes():
@@ -158,11 +162,11 @@ def test_record_follows_the_contract():
 
 def test_bad_data_is_refused_in_one_line():
     with pytest.raises(ValueError, match="frequency_hz"):
-        ModalData(np.full((3, 4), np.nan))
+        MeasuredModes(np.full((3, 4), np.nan))
     with pytest.raises(ValueError, match="amplitude"):
-        ModalData(np.ones((3, 4)), amplitude=np.array([1.0, 2.0]))
+        MeasuredModes(np.ones((3, 4)), amplitude=np.array([1.0, 2.0]))
     with pytest.raises(ValueError, match="damping_ratio"):
-        ModalData(np.ones((3, 4)), damping_ratio=np.ones((2, 4)))
+        MeasuredModes(np.ones((3, 4)), damping_ratio=np.ones((2, 4)))
 
 
 def test_diagnose_command_writes_json_and_html(tmp_path, capsys):
@@ -188,9 +192,43 @@ def test_one_blind_rig_case_from_frfs_through_the_circle_fit():
     assert result.shrinkage > 0.6
 
 
+def test_every_effect_of_the_registry_is_drawn_in_its_place():
+    from workbench.rig.effects import EFFECTS
+    from workbench.workflow.rig_cases import draw_effect
+
+    frame = read_frame(TWO_BOLT)
+    for name, kind in EFFECTS.items():
+        effect = draw_effect(frame, name, np.random.default_rng(0))
+        assert effect.type == name and set(effect.parameters) <= set(kind.keys)
+        apply_effect(frame, effect)  # a place and parameters the frame accepts
+    with pytest.raises(ValueError, match="unknown type"):
+        draw_effect(frame, "unexplained", np.random.default_rng(0))
+
+
+def test_validation_reports_progress_and_writes_its_files(monkeypatch, tmp_path):
+    import workbench.workflow.diagnosis as workflow
+    from workbench.workflow.rig_cases import CaseResult
+
+    def fake_case(frame, kind, seed):
+        right = kind == "none"
+        return CaseResult(seed, kind, None, {"x": 1.0}, kind, "none", None, 0.0, right, None, 0.5, {})
+
+    monkeypatch.setattr(workflow, "run_case", fake_case)
+    calls = []
+    summary = workflow.validate(3, 2, TWO_BOLT, progress=lambda *a: calls.append(a))
+    assert calls == [("validation cases", 1, 3), ("validation cases", 2, 3), ("validation cases", 3, 3)]
+    assert [r.seed for r in summary["results"]] == [200_006, 200_007, 200_008]
+    assert summary["none_right"] == "1/1" and summary["cases"] == 3
+    files = workflow.validation_files(summary)
+    assert "results" not in json.loads(files["summary.json"])
+    rows = list(csv.reader(io.StringIO(files["cases.csv"])))
+    assert len(rows) == 4 and rows[1][:3] == ["200006", "none", ""]
+    assert json.loads(rows[1][3]) == {"x": 1.0}
+
+
 @pytest.mark.slow
 def test_blind_validation_meets_the_issue_targets():
-    from workbench.report.diagnosis_page import validate
+    from workbench.workflow.diagnosis import validate
 
     summary = validate(40, 1, TWO_BOLT)
     assert summary["top1_accuracy"] >= 0.85

@@ -10,14 +10,14 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import REPO
 
 from workbench.io.campaign import Factor, load_campaign
+from workbench.model.frame_file import read_frame
+from workbench.model.modal import add_noise
 from workbench.rig.designs import sweep_preloads
-from workbench.model.frame import read_frame
-from workbench.rig.simulate import (EFFECTS, Effect, JointLaw, LockedStress, RigSettings, add_noise, simulate_campaign,
-                           truth_path, write_with_truth)
-
-from conftest import REPO
+from workbench.rig.effects import EFFECTS, Effect
+from workbench.rig.simulate import JointLaw, LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth
 
 FRAMES = REPO / "frames"
 CAMPAIGNS = REPO / "campaigns"
@@ -149,6 +149,19 @@ def test_every_vocabulary_effect_is_covered():
         Effect("unexplained")
 
 
+def test_the_registry_names_each_effects_parameters():
+    for effect in EFFECT_CASES.values():
+        kind = EFFECTS[effect.type]
+        assert effect.kind is kind and kind.name == effect.type
+        assert set(effect.parameters) <= set(kind.keys), f"{effect.type}: {effect.parameters} not in the registry"
+        assert kind.level in ("frame", "joint") and kind.unit
+    assert EFFECTS["none"].keys == () and not EFFECTS["none"].candidate
+    made = EFFECTS["added_mass"].effect("beam", mass=0.05, position=0.5)
+    assert made == EFFECT_CASES["added_mass_on_member"]
+    with pytest.raises(ValueError, match="unknown parameters"):
+        EFFECTS["added_mass"].effect("beam", mas=0.05)
+
+
 @pytest.mark.parametrize("key", list(EFFECT_CASES))
 def test_effect_acts_on_the_true_model_in_its_direction(effect_runs, one_bolt, key):
     campaign, truth = effect_runs[key]
@@ -196,7 +209,8 @@ def test_noise_has_the_requested_snr(one_bolt):
 
 
 def test_locked_in_stress_compresses_the_four_bolt_beam(four_bolt):
-    factors = tuple(Factor(f"bolt_{b}", "tightening", PAPER_LEVELS, j) for b, j in zip("ABCD", ("L1", "L2", "L3", "L4")))
+    factors = tuple(Factor(f"bolt_{b}", "tightening", PAPER_LEVELS, j)
+                    for b, j in zip("ABCD", ("L1", "L2", "L3", "L4")))
     design = [{f"bolt_{b}": "3" for b in "ABCD"}, {"bolt_A": "3", "bolt_B": "1", "bolt_C": "3", "bolt_D": "3"}]
     _, plain = simulate_campaign(four_bolt, factors, design, QUIET, 0)
     _, locked = simulate_campaign(four_bolt, factors, design, replace(QUIET, locked_stress=LockedStress()), 0)

@@ -1,26 +1,23 @@
-"""Outputs of the gap diagnosis: ``diagnosis.json``, its readable ``index.html``, and the blind validation.
+"""The gap diagnosis's page and text: the readable ``index.html`` beside ``diagnosis.json``, and the
+blind validation's printed summary.
 
-`diagnose_campaign` is ``workbench diagnose``; `validate` is ``workbench validate-diagnosis``. The
-numbers come from `workbench.diagnose.diagnosis` and `workbench.workflow.rig_cases`; this module draws and writes.
+The numbers come from `workbench.workflow.diagnosis` (`workbench.diagnose`, `workbench.workflow.rig_cases`);
+this module only draws figures and writes HTML and text.
 """
 
 from __future__ import annotations
 
 import html
-import time
-from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from workbench.io.campaign import load_campaign
-from workbench.workflow.measured import modal_data
-from workbench.diagnose.diagnosis import Diagnosis, diagnose, diagnosis_record
-from workbench.io.outputs import csv_text, json_text, write_outputs
+from workbench.diagnose.verdict import Diagnosis
 from workbench.report.page import CSS, html_figure, html_table
+from workbench.rig.effects import JOINT_DAMPING, NONE, UNEXPLAINED
 
-__all__ = ["diagnose_campaign", "diagnosis_html", "validate", "validation_text"]
+__all__ = ["diagnosis_html", "validation_text"]
+
 
 def _figures(d: Diagnosis) -> list[str]:
     """The page's figures as embedded HTML: residuals, localisation, ranking."""
@@ -71,7 +68,7 @@ def _figures(d: Diagnosis) -> list[str]:
         ax.barh(labels, held, color=["tab:green" if c.channel == "frequency" else "tab:orange" for c in ranked])
         ax.axvline(d.baseline.heldout_freq_rms_rel_error, color="tab:red", ls="--", label="nominal model (frequency)")
         ax.set_xscale("log")
-        ax.set_xlabel("held-out RMS error (relative frequency; damping ratio for joint_damping, orange)")
+        ax.set_xlabel(f"held-out RMS error (relative frequency; damping ratio for {JOINT_DAMPING.name}, orange)")
         ax.legend(fontsize=8)
         fig.tight_layout()
         out.append(html_figure(fig, "Candidates ranked by held-out error (leave one mode out): the lower, the better "
@@ -92,8 +89,8 @@ def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: 
     v = record["verdict"]
     banner = ('<p class="banner synthetic">SYNTHETIC campaign (virtual test rig): not a measurement.</p>'
               if synthetic else '<p class="banner real">Real measured data.</p>')
-    meaning = {"none": "the nominal model already fits within measurement scatter",
-               "unexplained": "a real gap remains that no effect of the vocabulary brings down to the scatter"}
+    meaning = {NONE.name: "the nominal model already fits within measurement scatter",
+               UNEXPLAINED: "a real gap remains that no effect of the vocabulary brings down to the scatter"}
     verdict = (f"<b>{html.escape(v['effect'])}</b>" + (f" at <b>{html.escape(str(v['where']))}</b>" if v["where"] else "")
                + f": held-out error shrinks by {100 * v['shrinkage']:.0f} %" if v["effect"] not in meaning
                else f"<b>{v['effect']}</b>: {meaning[v['effect']]}")
@@ -124,54 +121,9 @@ of the vocabulary (CONTRACTS.md section 3) with one parameter (two for a mass on
 fitted on exact eigen-solutions. Verdict rules: <code>none</code> when the nominal model's chi-square per
 observation is within the scatter; otherwise the best candidate if its held-out chi-square per observation is
 within the scatter allowance and it shrinks the held-out error meaningfully; else <code>unexplained</code>.
-See <code>workbench/diagnosis.py</code>.</p>
+See <code>workbench/diagnose/</code>.</p>
 </main></body></html>
 """
-
-
-def diagnose_campaign(path: str | Path, out: str | Path, force: bool = False, count: int | None = None,
-                      progress: Callable[[str], None] | None = None) -> dict:
-    """``workbench diagnose``: read, diagnose, write ``diagnosis.json`` and ``index.html`` together."""
-    campaign = load_campaign(path)
-    if progress:
-        progress("modes of every test (modes.csv or circle fit)")
-    data = modal_data(campaign, count)
-    result = diagnose(campaign.frame, data, progress)
-    record = diagnosis_record(campaign.name, result)
-    record["synthetic"] = bool(campaign.synthetic)
-    page = diagnosis_html(record, result, campaign.synthetic, str(campaign.source or path))
-    write_outputs(out, {"diagnosis.json": json_text(record), "index.html": page}, force=force)
-    return record
-
-
-def validate(cases: int, seed: int, frame_path: str | Path, out: str | Path | None = None, force: bool = False,
-             progress: bool = False) -> dict:
-    """``workbench validate-diagnosis``: ``cases`` blind cases from ``seed`` (`workbench.workflow.rig_cases`)."""
-    from workbench.model.frame import read_frame
-    from workbench.workflow.rig_cases import CASE_TYPES, run_case, summarise
-
-    frame = read_frame(frame_path)
-    kinds = [CASE_TYPES[i % len(CASE_TYPES)] for i in range(cases)]
-    results = []
-    iterator = range(cases)
-    if progress:
-        from tqdm import tqdm
-
-        iterator = tqdm(iterator, desc="blind cases", unit="case")
-    start = time.perf_counter()
-    for i in iterator:
-        results.append(run_case(frame, kinds[i], seed * 100_003 + i))
-    summary = summarise(results)
-    summary.update({"seed": seed, "frame": str(frame_path), "wall_time_s": time.perf_counter() - start})
-    if out is not None:
-        rows = [(r.seed, r.truth, r.truth_where, json_text(r.truth_parameters).strip(), r.expected, r.verdict, r.where,
-                 r.shrinkage, r.effect_right, r.place_right, r.wall_time_s) for r in results]
-        write_outputs(out, {"summary.json": json_text(summary),
-                            "cases.csv": csv_text(["seed", "truth", "truth_where", "truth_parameters", "expected",
-                                                   "verdict", "where", "shrinkage", "effect_right", "place_right",
-                                                   "wall_time_s"], rows)}, force=force)
-    summary["results"] = results
-    return summary
 
 
 def validation_text(summary: dict) -> str:

@@ -40,9 +40,10 @@ What a test of the rig is (one row of the design):
 5. **Damping**: ``zeta_k = zeta_base_k + sum_j eta_j(P_j, a) * e_jk``, ``e_jk`` joint j's share of
    mode k's strain energy and ``eta_j = eta0 * (1 + g * a * exp(-P_j / P0))`` (a loose or strongly
    driven joint dissipates more; ``eta0 = 0.01``, ``g = 0.5``, ``zeta_base`` 0.8 % on mode 1, 0.5 %
-   on mode 2, 0.4 % on modes 3-4, 0.3 % above: the bundled campaigns span 0.3 % to 1.5 %). The paper saw joint damping on its modes 5 and 8; in our
-   geometry the modes that load the joints most are others (3, 6, 7 and 10 for the one-bolt
-   vertical frame), and those are the ones that receive it.
+   on mode 2, 0.4 % on modes 3-4, 0.3 % above: the bundled campaigns span 0.3 % to 1.5 %). The
+   paper saw joint damping on its modes 5 and 8; in our geometry the modes that load the joints
+   most are others (3, 6, 7 and 10 for the one-bolt vertical frame), and those are the ones that
+   receive it.
 6. **FRFs**: accelerance (m/s2/N; the paper's vibrometer measured velocity, accelerance is what
    the contract's example and the circle fit read equally well) by modal superposition of the
    first `RigSettings.synthesis_modes` modes, 0-1250 Hz every ``df_hz`` (0.25 Hz: mode 1 at about
@@ -51,10 +52,11 @@ What a test of the rig is (one row of the design):
    and imaginary parts independent, per curve (test, sensor) of RMS ``sigma`` with
    ``SNR_dB = 20 log10(RMS_f |H| / sigma)``, ``RMS_f`` over all the band's lines.
 
-**Effects** (`Effect`): each name of CONTRACTS.md section 3's vocabulary, ``none``, and
-``outside_vocabulary`` (a thinned, cracked zone of a member: a gap no candidate explains) can be
-injected. Frame-level effects change the *true* frame (`apply_effect`); joint-level ones
-(joint_stiffness_shift, amplitude_softening, joint_damping) change the rig's joint physics. The
+**Effects** (`Effect`): each effect of the registry `workbench.rig.effects.EFFECTS` (CONTRACTS.md
+section 3's vocabulary, ``none``, and ``outside_vocabulary``: a thinned, cracked zone of a member, a
+gap no candidate explains) can be injected. Frame-level effects change the *true* frame
+(`apply_effect`; joint_stiffness_shift moves the joint moduli the laws are calibrated on);
+joint-level ones (amplitude_softening, joint_damping) change the rig's joint laws and damping. The
 campaign's ``frame.toml`` always stays the nominal model.
 
 **Truth**: `simulate_campaign` returns the campaign and a dict of what was simulated;
@@ -66,6 +68,7 @@ reads it.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -74,24 +77,29 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import brentq
 
+from workbench.io.campaign import PAPER_AMPLITUDE_RATIOS, Campaign, Factor, campaign_files
+from workbench.io.outputs import json_text, write_outputs
 from workbench.model.assembly import assemble, joint_energies
-from workbench.io.campaign import PAPER_AMPLITUDE_RATIOS, Campaign, Factor, write_campaign
-from workbench.rig.designs import sweep_preloads
-from workbench.rig.effects import DAMAGE_JOINT, EFFECTS, Effect, apply_effect, set_member
 from workbench.model.frame import Frame
 from workbench.model.modal import add_noise, frame_frf, model_modes
-from workbench.io.outputs import json_text, write_outputs
+from workbench.rig.designs import sweep_preloads
+from workbench.rig.effects import (
+    AMPLITUDE_SOFTENING,
+    DAMAGE_JOINT,
+    JOINT_DAMPING,
+    NONE,
+    Effect,
+    apply_effect,
+    set_member,
+)
 
 __all__ = [
-    "EFFECTS",
     "PAPER_LEVEL_PRELOADS_N",
     "AMPLITUDE_RATIOS",
     "JointLaw",
     "LockedStress",
-    "Effect",
     "RigSettings",
     "default_laws",
-    "apply_effect",
     "simulate_campaign",
     "write_with_truth",
     "truth_path",
@@ -118,20 +126,23 @@ class JointLaw:
     eta0: float = 0.01
     g: float = 0.5
 
-    def modulus(self, preload_n, amplitude: float = 1.0):
-        """Y(P, a), Pa."""
+    def modulus(self, preload_n: float | np.ndarray, amplitude: float = 1.0) -> np.ndarray:
+        """Y(P, a), Pa, at preloads ``preload_n`` (N) and amplitude ratio ``amplitude``."""
         p = np.asarray(preload_n, float)
         return (self.y_stuck_pa * (1.0 - (1.0 - self.r) * np.exp(-p / self.p0_n))
                 * (1.0 - self.s0 * amplitude * np.exp(-p / self.ps_n)))
 
-    def damping(self, preload_n, amplitude: float = 1.0):
+    def damping(self, preload_n: float | np.ndarray, amplitude: float = 1.0) -> np.ndarray:
         """eta(P, a): added modal damping ratio per unit of the joint's strain-energy share."""
         return self.eta0 * (1.0 + self.g * amplitude * np.exp(-np.asarray(preload_n, float) / self.p0_n))
 
     @classmethod
-    def calibrated(cls, mean_pa: float, cov: float, preloads_n=None, **shape: float) -> "JointLaw":
+    def calibrated(cls, mean_pa: float, cov: float, preloads_n: np.ndarray | None = None,
+                   **shape: Any) -> JointLaw:
         """The law whose modulus over ``preloads_n`` (default: the 9-level sweep) at low amplitude
-        has mean ``mean_pa`` and coefficient of variation ``cov`` (population, ddof = 0)."""
+        has mean ``mean_pa`` and coefficient of variation ``cov`` (population, ddof = 0); ``shape``
+        sets the other fields (``p0_n``, ``s0``, ``ps_n``, ``eta0``, ``g``).
+        """
         p = sweep_preloads() if preloads_n is None else np.asarray(preloads_n, float)
 
         def cov_of(r: float) -> float:
@@ -153,6 +164,7 @@ class LockedStress:
     mobilised: float = 0.1
 
     def forces(self, frame: Frame, preloads_n: dict[str, float]) -> dict[str, float]:
+        """Axial force (N, tension positive) of each member bolted at two or more joints, from their preloads (N)."""
         out = {}
         for member in frame.members:
             joints = [j.name for j in frame.joints if j.member == member.name]
@@ -192,10 +204,12 @@ class RigSettings:
     locked_stress: LockedStress | None = None
 
     def frequency_axis(self) -> np.ndarray:
+        """The FRFs' lines, 0 to ``f_max_hz`` every ``df_hz``, Hz."""
         n = int(round(self.f_max_hz / self.df_hz))
         return self.df_hz * np.arange(n + 1)
 
     def zeta(self, count: int) -> np.ndarray:
+        """(count,) base modal damping ratios of the first ``count`` modes."""
         z = self.zeta_base
         return np.array([z[min(k, len(z) - 1)] for k in range(count)])
 
@@ -211,8 +225,8 @@ def _laws(frame: Frame, settings: RigSettings, effect: Effect | None) -> dict[st
         cov = settings.group_cov.get(j.group, j.cov if j.cov > 0 else 0.05)
         law = JointLaw.calibrated(j.youngs_modulus, cov, **settings.law_shape)
         if effect is not None and effect.where == j.name:
-            if effect.type == "amplitude_softening":
-                law = replace(law, s0=float(effect.parameters["s0"]),
+            if effect.type == AMPLITUDE_SOFTENING.name:
+                law = replace(law, s0=effect.magnitude,
                               ps_n=float(effect.parameters.get("ps_n", law.ps_n)))
         laws[j.name] = law
     return laws
@@ -239,9 +253,101 @@ def _test_conditions(frame: Frame, factors: tuple[Factor, ...], levels: dict[str
     return preload, amplitude
 
 
-def simulate_campaign(frame: Frame, factors, design: list[dict[str, str]], settings: RigSettings | None = None,
-                      seed: int = 0, effect: Effect | None = None, *, name: str = "virtual rig campaign",
-                      description: str = "", source: str = "") -> tuple[Campaign, dict[str, Any]]:
+@dataclass(frozen=True)
+class _Article:
+    """What every test of a campaign shares: the nominal and true frames, the joint laws, the injected
+    joint damping (per joint, per unit of strain-energy share) and the rig's settings.
+    """
+
+    nominal: Frame
+    true_frame: Frame
+    laws: dict[str, JointLaw]
+    extra_eta: dict[str | None, float]
+    factors: tuple[Factor, ...]
+    settings: RigSettings
+
+
+def _test_frame(true_frame: Frame, settings: RigSettings, d_temp: float, locked: dict[str, float]) -> Frame:
+    """The test's true frame: temperature on the members' material, locked-in axial forces (N)."""
+    t_factor = 1.0 + settings.temperature_coefficient * d_temp
+    test_frame = replace(true_frame, materials={k: replace(m, youngs_modulus=m.youngs_modulus * t_factor)
+                                                for k, m in true_frame.materials.items()})
+    for member, force in locked.items():
+        test_frame = set_member(test_frame, member, axial_force=test_frame.member(member).axial_force + force)
+    if any(j.name == DAMAGE_JOINT for j in test_frame.joints):  # the damaged zone's material follows the temperature
+        test_frame = replace(test_frame, joints=tuple(
+            replace(j, youngs_modulus=j.youngs_modulus * t_factor) if j.name == DAMAGE_JOINT else j
+            for j in test_frame.joints))
+    return test_frame
+
+
+def _simulate_test(article: _Article, test_id: int, levels: dict[str, str], f_axis: np.ndarray,
+                   scatter_rng: np.random.Generator,
+                   noise_rng: np.random.Generator) -> tuple[np.ndarray, dict[str, Any]]:
+    """One test: its noisy FRFs (n_sensors, n_freq) and its truth record (module docstring, steps 1-6)."""
+    settings, laws = article.settings, article.laws
+    sigma_ln = math.sqrt(math.log1p(settings.scatter_cov ** 2))
+    preload, amplitude = _test_conditions(article.true_frame, article.factors, levels, settings)
+    scatter = np.exp(sigma_ln * scatter_rng.standard_normal(len(laws)) - 0.5 * sigma_ln ** 2)
+    d_temp = settings.temperature_sd_k * float(scatter_rng.standard_normal())
+    moduli = {j: float(law.modulus(preload[j], amplitude)) * s for (j, law), s in zip(laws.items(), scatter)}
+    locked = settings.locked_stress.forces(article.true_frame, preload) if settings.locked_stress else {}
+    test_frame = _test_frame(article.true_frame, settings, d_temp, locked)
+    model = assemble(test_frame)
+    gamma = np.array([moduli[j.name] / j.youngs_modulus if j.name in moduli else 1.0 for j in test_frame.joints])
+    count = max(settings.synthesis_modes, settings.mode_count)
+    modes = model_modes(model, count, gamma)
+    rest, per_joint = joint_energies(model, modes.shapes)
+    weighted = gamma[:, None] * per_joint
+    share = weighted / (rest + weighted.sum(axis=0))
+    zeta = settings.zeta(count)
+    for k, j in enumerate(test_frame.joints):
+        if j.name in laws:
+            zeta = zeta + (float(laws[j.name].damping(preload[j.name], amplitude))
+                           + article.extra_eta.get(j.name, 0.0)) * share[k]
+    frf = frame_frf(model, modes, f_axis, settings.quantity, zeta)
+    noisy = add_noise(frf.values, settings.snr_db, noise_rng)
+    n = settings.mode_count
+    nominal_modulus = {j.name: j.youngs_modulus for j in article.nominal.joints}
+    return noisy, {
+        "test_id": test_id,
+        "levels": {f.name: str(levels[f.name]) for f in article.factors},
+        "preloads_n": preload,
+        "amplitude_ratio": amplitude,
+        "moduli_pa": moduli,
+        "gamma": [moduli[j] / nominal_modulus[j] for j in article.nominal.joint_names],
+        "temperature_offset_k": d_temp,
+        "locked_axial_force_n": locked,
+        "frequency_hz": modes.frequency_hz[:n].tolist(),
+        "damping_ratio": zeta[:n].tolist(),
+        "joint_energy_share": {j.name: share[k, :n].tolist() for k, j in enumerate(test_frame.joints)
+                               if j.name in laws},
+    }
+
+
+def _tables(frame: Frame, factors: tuple[Factor, ...], design: list[dict[str, str]], f_axis: np.ndarray,
+            curves: list[np.ndarray]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The campaign's FRF table (test_id, sensor, frequency_hz, real, imag) and design table."""
+    sensors = [s.name for s in frame.sensors]
+    n_tests, n_sensors, n_freq = len(design), len(sensors), f_axis.size
+    values = np.stack(curves) if curves else np.zeros((0, n_sensors, n_freq), complex)
+    frf_table = pd.DataFrame({
+        "test_id": np.repeat(np.arange(1, n_tests + 1), n_sensors * n_freq),
+        "sensor": np.tile(np.repeat(np.array(sensors, dtype=object), n_freq), n_tests),
+        "frequency_hz": np.tile(f_axis, n_tests * n_sensors),
+        "real": values.real.ravel(),
+        "imag": values.imag.ravel(),
+    })
+    design_table = pd.DataFrame([{"test_id": i + 1, **{f.name: str(row[f.name]) for f in factors}}
+                                 for i, row in enumerate(design)],
+                                columns=["test_id"] + [f.name for f in factors])
+    return frf_table, design_table
+
+
+def simulate_campaign(frame: Frame, factors: Iterable[Factor], design: list[dict[str, str]],
+                      settings: RigSettings | None = None, seed: int = 0, effect: Effect | None = None, *,
+                      name: str = "virtual rig campaign", description: str = "",
+                      source: str = "") -> tuple[Campaign, dict[str, Any]]:
     """Synthesise a measured campaign of ``frame`` over ``design`` (module docstring).
 
     Parameters
@@ -264,76 +370,17 @@ def simulate_campaign(frame: Frame, factors, design: list[dict[str, str]], setti
     factors = tuple(factors)
     effect = effect or Effect()
     true_frame = apply_effect(frame, effect)
-    laws = _laws(true_frame, settings, effect)
-    nominal_modulus = {j.name: j.youngs_modulus for j in frame.joints}
-    extra_eta = {effect.where: float(effect.parameters["eta"])} if effect.type == "joint_damping" else {}
+    extra_eta = {effect.where: effect.magnitude} if effect.type == JOINT_DAMPING.name else {}
+    article = _Article(frame, true_frame, _laws(true_frame, settings, effect), extra_eta, factors, settings)
     f_axis = settings.frequency_axis()
-    streams = np.random.SeedSequence(seed).spawn(2)
-    scatter_rng, noise_rng = (np.random.default_rng(s) for s in streams)
-    sigma_ln = math.sqrt(math.log1p(settings.scatter_cov ** 2))
-
-    tests, curves = [], []
+    # two streams: the test-to-test scatter does not change with the noise settings, nor the reverse
+    scatter_rng, noise_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    curves, tests = [], []
     for i, levels in enumerate(design):
-        test_id = i + 1
-        preload, amplitude = _test_conditions(true_frame, factors, levels, settings)
-        scatter = np.exp(sigma_ln * scatter_rng.standard_normal(len(laws)) - 0.5 * sigma_ln ** 2)
-        d_temp = settings.temperature_sd_k * float(scatter_rng.standard_normal())
-        moduli = {j: float(law.modulus(preload[j], amplitude)) * s for (j, law), s in zip(laws.items(), scatter)}
-        # the test's true frame: temperature on the members' material, locked-in axial forces
-        t_factor = 1.0 + settings.temperature_coefficient * d_temp
-        test_frame = replace(true_frame, materials={k: replace(m, youngs_modulus=m.youngs_modulus * t_factor)
-                                                    for k, m in true_frame.materials.items()})
-        locked = settings.locked_stress.forces(true_frame, preload) if settings.locked_stress else {}
-        for member, force in locked.items():
-            test_frame = set_member(test_frame, member, axial_force=test_frame.member(member).axial_force + force)
-        if any(j.name == DAMAGE_JOINT for j in test_frame.joints):  # the damaged zone's material follows the temperature
-            test_frame = replace(test_frame, joints=tuple(
-                replace(j, youngs_modulus=j.youngs_modulus * t_factor) if j.name == DAMAGE_JOINT else j
-                for j in test_frame.joints))
-        model = assemble(test_frame)
-        gamma = np.array([moduli[j.name] / j.youngs_modulus if j.name in moduli else 1.0 for j in test_frame.joints])
-        count = max(settings.synthesis_modes, settings.mode_count)
-        modes = model_modes(model, count, gamma)
-        rest, per_joint = joint_energies(model, modes.shapes)
-        weighted = gamma[:, None] * per_joint
-        share = weighted / (rest + weighted.sum(axis=0))
-        zeta = settings.zeta(count)
-        for k, j in enumerate(test_frame.joints):
-            if j.name in laws:
-                zeta = zeta + (float(laws[j.name].damping(preload[j.name], amplitude))
-                               + extra_eta.get(j.name, 0.0)) * share[k]
-        frf = frame_frf(model, modes, f_axis, settings.quantity, zeta)
-        noisy = add_noise(frf.values, settings.snr_db, noise_rng)
-        curves.append(noisy)
-        n = settings.mode_count
-        tests.append({
-            "test_id": test_id,
-            "levels": {f.name: str(levels[f.name]) for f in factors},
-            "preloads_n": preload,
-            "amplitude_ratio": amplitude,
-            "moduli_pa": moduli,
-            "gamma": [moduli[j] / nominal_modulus[j] for j in frame.joint_names],
-            "temperature_offset_k": d_temp,
-            "locked_axial_force_n": locked,
-            "frequency_hz": modes.frequency_hz[:n].tolist(),
-            "damping_ratio": zeta[:n].tolist(),
-            "joint_energy_share": {j.name: share[k, :n].tolist() for k, j in enumerate(test_frame.joints)
-                                   if j.name in laws},
-        })
-
-    sensors = [s.name for s in frame.sensors]
-    n_tests, n_sensors, n_freq = len(design), len(sensors), f_axis.size
-    values = np.stack(curves) if curves else np.zeros((0, n_sensors, n_freq), complex)
-    frf_table = pd.DataFrame({
-        "test_id": np.repeat(np.arange(1, n_tests + 1), n_sensors * n_freq),
-        "sensor": np.tile(np.repeat(np.array(sensors, dtype=object), n_freq), n_tests),
-        "frequency_hz": np.tile(f_axis, n_tests * n_sensors),
-        "real": values.real.ravel(),
-        "imag": values.imag.ravel(),
-    })
-    design_table = pd.DataFrame([{"test_id": i + 1, **{f.name: str(row[f.name]) for f in factors}}
-                                 for i, row in enumerate(design)],
-                                columns=["test_id"] + [f.name for f in factors])
+        curve, test = _simulate_test(article, i + 1, levels, f_axis, scatter_rng, noise_rng)
+        curves.append(curve)
+        tests.append(test)
+    frf_table, design_table = _tables(frame, factors, design, f_axis, curves)
     campaign = Campaign(name=name, frame=frame, synthetic=True, quantity=settings.quantity,
                         description=description,
                         source=source or "synthetic: the workbench's virtual test rig (workbench.rig.simulate)",
@@ -341,7 +388,7 @@ def simulate_campaign(frame: Frame, factors, design: list[dict[str, str]], setti
     nominal = model_modes(assemble(frame), settings.mode_count).frequency_hz
     truth = {
         "campaign": name,
-        "effect": None if effect.type == "none" else effect.type,
+        "effect": None if effect.type == NONE.name else effect.type,
         "where": effect.where,
         "effect_parameters": dict(effect.parameters),
         "quantity": settings.quantity,
@@ -350,7 +397,7 @@ def simulate_campaign(frame: Frame, factors, design: list[dict[str, str]], setti
         "seed": seed,
         "nominal_model_hz_at_joint_means": nominal.tolist(),
         "settings": _settings_dict(settings),
-        "joint_laws": {j: asdict(law) for j, law in laws.items()},
+        "joint_laws": {j: asdict(law) for j, law in article.laws.items()},
         "tests": tests,
     }
     return campaign, truth
@@ -369,10 +416,11 @@ def truth_path(directory: str | Path) -> Path:
 
 
 def write_with_truth(campaign: Campaign, truth: dict[str, Any], directory: str | Path, force: bool = False) -> Path:
-    """Write the campaign (parquet, float32 FRFs) and its truth beside it, never inside it."""
+    """Write the campaign (parquet, float32 FRFs) and its truth beside it, never inside it: all files or none."""
     directory = Path(directory)
-    write_campaign(campaign, directory, force=force, frf_format="parquet", frf_dtype="float32")
     truth = {**truth, "directory": directory.name}
     path = truth_path(directory)
-    write_outputs(path.parent, {path.name: json_text(truth)}, force=force)
+    files = {f"{directory.name}/{name}": content
+             for name, content in campaign_files(campaign, frf_format="parquet", frf_dtype="float32").items()}
+    write_outputs(directory.parent, {**files, path.name: json_text(truth)}, force=force)
     return path

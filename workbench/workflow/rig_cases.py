@@ -1,10 +1,10 @@
 """Blind validation of the gap diagnosis on the virtual rig (``workbench validate-diagnosis``).
 
 Each case is a campaign of the rig on a frame (default: the two-bolt frame) with one hidden
-effect drawn from a seed: its type (in turn: none, each effect of the vocabulary, and one outside
-it: a cracked zone of a member), its place and its magnitude (`draw_effect`). The diagnosis sees
-only the campaign (its frame file and its FRFs, through the circle fit); the truth stays here and
-only scores the verdict.
+effect drawn from a seed: its type (in turn: each effect of the registry `workbench.rig.effects.EFFECTS`:
+none, each effect of the vocabulary, and one outside it: a cracked zone of a member), its place
+and its magnitude (`draw_effect`). The diagnosis sees only the campaign (its frame file and its
+FRFs, through the circle fit); the truth stays here and only scores the verdict.
 
 The article without effect matches its frame file: every test at full preload (level 3) with the
 joint law's modulus there equal to the file's mean, no amplitude softening, no joint damping, a
@@ -20,22 +20,38 @@ added mass, on the same member (a point names every member it lies on).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from workbench.io.campaign import Factor
-from workbench.workflow.measured import modal_data
-from workbench.diagnose.diagnosis import diagnose, members_at
-from workbench.rig.effects import EFFECTS, Effect
+from workbench.diagnose.candidates import members_at
+from workbench.diagnose.verdict import diagnose, diagnosis_record
+from workbench.io.campaign import Campaign, Factor
 from workbench.model.frame import Frame, member_length
+from workbench.rig.effects import (
+    ADDED_MASS,
+    AMPLITUDE_SOFTENING,
+    AXIAL_PRESTRESS,
+    EFFECTS,
+    JOINT_DAMPING,
+    JOINT_STIFFNESS_SHIFT,
+    NONE,
+    OUTSIDE_VOCABULARY,
+    SHEAR_DEFORMATION,
+    STINGER_STIFFNESS,
+    SUPPORT_COMPLIANCE,
+    UNEXPLAINED,
+    Effect,
+)
 from workbench.rig.simulate import JointLaw, RigSettings, simulate_campaign
+from workbench.workflow.measured import measured_modes
 
-__all__ = ["CASE_SETTINGS", "draw_effect", "case_campaign", "CaseResult", "run_case", "summarise"]
+__all__ = ["CASE_SETTINGS", "CASE_TYPES", "draw_effect", "case_campaign", "CaseResult", "run_case", "summarise"]
 
 CASE_SETTINGS = RigSettings(law_shape={"s0": 0.0, "eta0": 0.0}, zeta_base=(0.004,), snr_db=40.0)
-CASE_TYPES = EFFECTS  # none, the eight of the vocabulary, outside_vocabulary
+CASE_TYPES = tuple(EFFECTS)  # none, the eight of the vocabulary, outside_vocabulary
 FULL_PRELOAD = "3"
 
 
@@ -45,59 +61,103 @@ def _euler(frame: Frame, member: str) -> float:
     return math.pi ** 2 * ei / member_length(frame, m) ** 2
 
 
+class _Draw:
+    """Random places and magnitudes on one frame, in the order the drawers call them (seeded)."""
+
+    def __init__(self, frame: Frame, rng: np.random.Generator) -> None:
+        self.frame, self.rng = frame, rng
+        supported = {s.point for s in frame.supports}
+        self.free_points = [p for p in frame.points if p not in supported]
+        self.joints = [j.name for j in frame.joints]
+        self.members = [m.name for m in frame.members]
+
+    def log_uniform(self, lo: float, hi: float) -> float:
+        return float(10 ** self.rng.uniform(math.log10(lo), math.log10(hi)))
+
+    def pick(self, names: list[str]) -> str:
+        return names[int(self.rng.integers(len(names)))]
+
+
+def _support_compliance(d: _Draw) -> Effect:
+    support = d.frame.supports[int(d.rng.integers(len(d.frame.supports)))]
+    return SUPPORT_COMPLIANCE.effect(support.point, rz=support.rz * d.log_uniform(0.05, 0.5))
+
+
+def _added_mass(d: _Draw) -> Effect:
+    mass = d.log_uniform(0.02, 0.15)
+    if d.rng.random() < 0.5:
+        return ADDED_MASS.effect(d.pick(d.free_points), mass=mass)
+    member = d.pick(d.members)
+    return ADDED_MASS.effect(member, mass=mass, position=float(d.rng.uniform(0.15, 0.85)))
+
+
+def _shear_deformation(d: _Draw) -> Effect:
+    kappa = next((s.shear_coefficient for s in d.frame.sections.values() if s.shear_coefficient), 5 / 6)
+    return SHEAR_DEFORMATION.effect(None, shear_coefficient=kappa * d.log_uniform(0.15, 1.0))
+
+
+def _stinger_stiffness(d: _Draw) -> Effect:
+    excitation = d.frame.excitation
+    return STINGER_STIFFNESS.effect(excitation.point, stiffness=d.log_uniform(5e3, 5e4), dof=excitation.dof)
+
+
+def _axial_prestress(d: _Draw) -> Effect:
+    member = d.pick(d.members)
+    sign = -1.0 if d.rng.random() < 0.5 else 1.0
+    return AXIAL_PRESTRESS.effect(member, axial_force=sign * _euler(d.frame, member) * d.rng.uniform(0.05, 0.2))
+
+
+def _joint_stiffness_shift(d: _Draw) -> Effect:
+    factor = d.log_uniform(0.4, 0.8) if d.rng.random() < 0.5 else d.log_uniform(1.25, 2.0)
+    return JOINT_STIFFNESS_SHIFT.effect(d.pick(d.joints), factor=factor)
+
+
+def _amplitude_softening(d: _Draw) -> Effect:
+    # ps_n far above the preload: the slope s0 acts fully at full preload
+    return AMPLITUDE_SOFTENING.effect(d.pick(d.joints), s0=d.rng.uniform(0.01, 0.05), ps_n=1e12)
+
+
+def _joint_damping(d: _Draw) -> Effect:
+    return JOINT_DAMPING.effect(d.pick(d.joints), eta=d.rng.uniform(0.03, 0.15))
+
+
+def _outside_vocabulary(d: _Draw) -> Effect:
+    for _ in range(100):
+        member = d.frame.member(d.pick(d.members))
+        length = member_length(d.frame, member)
+        width = d.rng.uniform(0.03, 0.06)
+        a = d.rng.uniform(0.05, length - 0.05 - width)
+        if all(not (j.member == member.name and a < j.span[1] + 0.01 and j.span[0] - 0.01 < a + width)
+               for j in d.frame.joints):
+            return OUTSIDE_VOCABULARY.effect(member.name, span=[round(a, 3), round(a + width, 3)],
+                                             stiffness_factor=float(d.rng.uniform(0.2, 0.5)))
+    raise ValueError(f"{d.frame.source}: no member has room for a damaged zone away from the joints")
+
+
+_DRAWERS: dict[str, Callable[[_Draw], Effect]] = {
+    NONE.name: lambda d: Effect(),
+    SUPPORT_COMPLIANCE.name: _support_compliance,
+    ADDED_MASS.name: _added_mass,
+    SHEAR_DEFORMATION.name: _shear_deformation,
+    STINGER_STIFFNESS.name: _stinger_stiffness,
+    AXIAL_PRESTRESS.name: _axial_prestress,
+    JOINT_STIFFNESS_SHIFT.name: _joint_stiffness_shift,
+    AMPLITUDE_SOFTENING.name: _amplitude_softening,
+    JOINT_DAMPING.name: _joint_damping,
+    OUTSIDE_VOCABULARY.name: _outside_vocabulary,
+}
+
+
 def draw_effect(frame: Frame, kind: str, rng: np.random.Generator) -> Effect:
-    """A hidden effect of type ``kind`` with a random place and magnitude (module docstring)."""
-    supported = {s.point for s in frame.supports}
-    free_points = [p for p in frame.points if p not in supported]
-    joints = [j.name for j in frame.joints]
-    members = [m.name for m in frame.members]
-
-    def log_uniform(lo: float, hi: float) -> float:
-        return float(10 ** rng.uniform(math.log10(lo), math.log10(hi)))
-
-    if kind == "none":
-        return Effect()
-    if kind == "support_compliance":
-        support = frame.supports[int(rng.integers(len(frame.supports)))]
-        return Effect(kind, support.point, {"rz": support.rz * log_uniform(0.05, 0.5)})
-    if kind == "added_mass":
-        mass = log_uniform(0.02, 0.15)
-        if rng.random() < 0.5:
-            return Effect(kind, free_points[int(rng.integers(len(free_points)))], {"mass": mass})
-        member = members[int(rng.integers(len(members)))]
-        return Effect(kind, member, {"mass": mass, "position": float(rng.uniform(0.15, 0.85))})
-    if kind == "shear_deformation":
-        kappa = next((s.shear_coefficient for s in frame.sections.values() if s.shear_coefficient), 5 / 6)
-        return Effect(kind, None, {"shear_coefficient": kappa * log_uniform(0.15, 1.0)})
-    if kind == "stinger_stiffness":
-        return Effect(kind, frame.excitation.point, {"stiffness": log_uniform(5e3, 5e4), "dof": frame.excitation.dof})
-    if kind == "axial_prestress":
-        member = members[int(rng.integers(len(members)))]
-        sign = -1.0 if rng.random() < 0.5 else 1.0
-        return Effect(kind, member, {"axial_force": sign * _euler(frame, member) * rng.uniform(0.05, 0.2)})
-    if kind == "joint_stiffness_shift":
-        factor = log_uniform(0.4, 0.8) if rng.random() < 0.5 else log_uniform(1.25, 2.0)
-        return Effect(kind, joints[int(rng.integers(len(joints)))], {"factor": factor})
-    if kind == "amplitude_softening":
-        # ps_n far above the preload: the slope s0 acts fully at full preload
-        return Effect(kind, joints[int(rng.integers(len(joints)))], {"s0": rng.uniform(0.01, 0.05), "ps_n": 1e12})
-    if kind == "joint_damping":
-        return Effect(kind, joints[int(rng.integers(len(joints)))], {"eta": rng.uniform(0.03, 0.15)})
-    if kind == "outside_vocabulary":
-        for _ in range(100):
-            member = frame.member(members[int(rng.integers(len(members)))])
-            length = member_length(frame, member)
-            width = rng.uniform(0.03, 0.06)
-            a = rng.uniform(0.05, length - 0.05 - width)
-            if all(not (j.member == member.name and a < j.span[1] + 0.01 and j.span[0] - 0.01 < a + width)
-                   for j in frame.joints):
-                return Effect(kind, member.name, {"span": [round(a, 3), round(a + width, 3)],
-                                                  "stiffness_factor": float(rng.uniform(0.2, 0.5))})
-        raise ValueError(f"{frame.source}: no member has room for a damaged zone away from the joints")
-    raise ValueError(f"draw_effect: unknown type {kind!r}")
+    """A hidden effect of type ``kind`` (a name of `EFFECTS`) with a random place and magnitude (module docstring)."""
+    drawer = _DRAWERS.get(kind)
+    if drawer is None:
+        raise ValueError(f"draw_effect: unknown type {kind!r}")
+    return drawer(_Draw(frame, rng))
 
 
-def case_campaign(frame: Frame, effect: Effect, seed: int, settings: RigSettings = CASE_SETTINGS):
+def case_campaign(frame: Frame, effect: Effect, seed: int,
+                  settings: RigSettings = CASE_SETTINGS) -> tuple[Campaign, dict[str, Any]]:
     """The rig's campaign of one case and its truth; the campaign's frame file is the nominal ``frame``.
 
     The nominal joints are deterministic (cov 0) at the modulus the rig's law gives at full
@@ -119,6 +179,8 @@ def case_campaign(frame: Frame, effect: Effect, seed: int, settings: RigSettings
 
 @dataclass(frozen=True)
 class CaseResult:
+    """One blind case: what was drawn, the verdict that is right, the diagnosis's, and their scores."""
+
     seed: int
     truth: str  # the drawn type
     truth_where: str | None
@@ -133,58 +195,66 @@ class CaseResult:
     record: dict
 
 
+def _expected(effect: Effect) -> str:
+    """The verdict that is right: the effect when the diagnosis can name it; else none or unexplained."""
+    if effect.kind.candidate:
+        return effect.type
+    return NONE.name if effect.type == NONE.name else UNEXPLAINED
+
+
 def _place_right(frame: Frame, effect: Effect, where: str | None) -> bool | None:
-    if effect.type in ("none", "outside_vocabulary"):
+    if not effect.kind.candidate:
         return None
     if effect.where is None:
         return where is None
-    if effect.type == "added_mass":
+    if effect.type == ADDED_MASS.name:
         return bool({m for m, _ in members_at(frame, effect.where)} & {m for m, _ in members_at(frame, where)})
     return where == effect.where
 
 
 def run_case(frame: Frame, kind: str, seed: int) -> CaseResult:
     """Draw, simulate, diagnose blind (campaign only), score."""
-    from workbench.diagnose.diagnosis import diagnosis_record
-
     rng = np.random.default_rng(seed)
     effect = draw_effect(frame, kind, rng)
     campaign, _ = case_campaign(frame, effect, seed)
-    result = diagnose(campaign.frame, modal_data(campaign))  # the truth is not passed
-    expected = {"none": "none", "outside_vocabulary": "unexplained"}.get(effect.type, effect.type)
+    result = diagnose(campaign.frame, measured_modes(campaign, None, "diagnose"))  # the truth is not passed
+    expected = _expected(effect)
     right = result.verdict == expected
     return CaseResult(seed, effect.type, effect.where, dict(effect.parameters), expected, result.verdict, result.where,
                       result.shrinkage, right, _place_right(frame, effect, result.where) if right else None,
                       result.wall_time_s, diagnosis_record(campaign.name, result))
 
 
+def _quantiles(x: np.ndarray) -> dict[str, float] | None:
+    return None if x.size == 0 else {q: float(np.quantile(x, p)) for q, p in
+                                     (("min", 0), ("p10", 0.1), ("median", 0.5), ("p90", 0.9), ("max", 1))}
+
+
+def _right_of(results: list[CaseResult], kind: str) -> str:
+    """``right/drawn`` for the cases of one drawn type."""
+    return f"{sum(r.effect_right for r in results if r.truth == kind)}/{sum(r.truth == kind for r in results)}"
+
+
 def summarise(results: list[CaseResult]) -> dict[str, Any]:
     """Confusion matrix (drawn type -> verdict), accuracy, place accuracy and shrinkage quantiles."""
-    labels = list(CASE_TYPES) + ["unexplained"]
+    labels = list(CASE_TYPES) + [UNEXPLAINED]
     confusion = {t: {v: 0 for v in labels} for t in CASE_TYPES}
     for r in results:
-        confusion[r.truth][r.verdict if r.verdict in labels else "unexplained"] += 1
+        confusion[r.truth][r.verdict if r.verdict in labels else UNEXPLAINED] += 1
     right = [r for r in results if r.effect_right]
     placed = [r for r in right if r.place_right is not None]
-    named = [r for r in results if r.truth not in ("none", "outside_vocabulary")]
+    named = [r for r in results if EFFECTS[r.truth].candidate]
     shrink_right = np.array([r.shrinkage for r in named if r.effect_right])
     shrink_all = np.array([r.shrinkage if r.effect_right else 0.0 for r in named])
-
-    def quantiles(x: np.ndarray) -> dict[str, float] | None:
-        return None if x.size == 0 else {q: float(np.quantile(x, p)) for q, p in
-                                         (("min", 0), ("p10", 0.1), ("median", 0.5), ("p90", 0.9), ("max", 1))}
-
     return {
         "cases": len(results),
         "top1_accuracy": len(right) / max(len(results), 1),
-        "place_accuracy": (sum(r.place_right for r in placed) / len(placed)) if placed else None,
+        "place_accuracy": (sum(bool(r.place_right) for r in placed) / len(placed)) if placed else None,
         "place_checked": len(placed),
-        "none_right": f"{sum(r.effect_right for r in results if r.truth == 'none')}/"
-                      f"{sum(r.truth == 'none' for r in results)}",
-        "outside_right": f"{sum(r.effect_right for r in results if r.truth == 'outside_vocabulary')}/"
-                         f"{sum(r.truth == 'outside_vocabulary' for r in results)}",
-        "shrinkage_right_verdicts": quantiles(shrink_right),
-        "shrinkage_all_effects": quantiles(shrink_all),
+        "none_right": _right_of(results, NONE.name),
+        "outside_right": _right_of(results, OUTSIDE_VOCABULARY.name),
+        "shrinkage_right_verdicts": _quantiles(shrink_right),
+        "shrinkage_all_effects": _quantiles(shrink_all),
         "confusion": confusion,
         "mean_wall_time_s": float(np.mean([r.wall_time_s for r in results])) if results else 0.0,
     }

@@ -1,0 +1,226 @@
+"""Which candidates the diagnosis fits: each effect of the registry at each place the frame allows.
+
+Every effect of `workbench.rig.effects.EFFECTS` that is a candidate, at each place of the kind it
+names, gets a grid of its parameter (`workbench.diagnose.curves.sweep`): a support's rotational
+stiffness (clamped supports from a hundredth of the beam's EI / L up), the stinger's stiffness
+(around the drive point's static stiffness), each member's axial force (-0.6 to 2 Euler loads),
+each joint's modulus factor (0.1 to 10, and every joint at once), the shear coefficient
+(Euler-Bernoulli frames), and an added mass. Amplitude softening and joint damping reuse the joint
+curves and the energy shares (`workbench.diagnose.verdict`).
+
+**Mass position.** A first-order screen (`workbench.diagnose.localise.explained` of each mesh
+node's translation) picks the few best places; around each, nearby nodes are fitted on a coarse
+exact grid, and the best one's position along its member is refined between mesh nodes by a
+bounded scalar search, before the full grid.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.sparse.linalg import splu
+
+from workbench.diagnose.baseline import Baseline
+from workbench.diagnose.curves import Curve, sweep
+from workbench.diagnose.fitting import fit_curve
+from workbench.diagnose.localise import explained
+from workbench.diagnose.observations import Observations
+from workbench.model.assembly import Mesh
+from workbench.model.frame import Frame, member_length
+from workbench.rig.effects import (
+    ADDED_MASS,
+    AXIAL_PRESTRESS,
+    JOINT_STIFFNESS_SHIFT,
+    SHEAR_DEFORMATION,
+    STINGER_STIFFNESS,
+    SUPPORT_COMPLIANCE,
+)
+
+__all__ = ["GRID_POINTS", "frame_curves", "members_at"]
+
+GRID_POINTS = 33
+
+
+def _bending(frame: Frame, member_index: int) -> float:
+    m = frame.members[member_index]
+    return frame.materials[m.material].youngs_modulus * frame.sections[m.section].second_moment
+
+
+def _reference_bending(frame: Frame, point: str) -> tuple[float, float]:
+    """EI (N.m2) and length (m) of the first member that starts or ends at ``point``."""
+    for i, m in enumerate(frame.members):
+        if point in (m.start, m.end):
+            return _bending(frame, i), member_length(frame, m)
+    return _bending(frame, 0), member_length(frame, frame.members[0])
+
+
+def _support_curves(base: Baseline) -> list[Curve | None]:
+    curves = []
+    for s in base.frame.supports:
+        if s.rz is None:
+            continue
+        if math.isinf(s.rz):
+            ei, length = _reference_bending(base.frame, s.point)
+            values = ei / length * np.logspace(-2, 3, GRID_POINTS)
+        else:
+            values = s.rz * np.logspace(-3, 0, GRID_POINTS)
+        curves.append(sweep(base, SUPPORT_COMPLIANCE, s.point, values, values.size - 1, True))
+    return curves
+
+
+def _stinger_curves(base: Baseline) -> list[Curve | None]:
+    excitation = base.frame.excitation
+    if excitation is None:
+        return []
+    d = base.model.dof(excitation.point, excitation.dof)
+    unit = np.zeros(base.model.size)
+    unit[d] = 1.0
+    k_static = 1.0 / float(splu(base.model.stiffness().tocsc()).solve(unit)[d])
+    values = k_static * np.logspace(-4, 1, GRID_POINTS)
+    return [sweep(base, STINGER_STIFFNESS, excitation.point, values, 0, True, {"dof": excitation.dof})]
+
+
+def _axial_curves(base: Baseline) -> list[Curve | None]:
+    curves = []
+    for i, m in enumerate(base.frame.members):
+        euler = math.pi ** 2 * _bending(base.frame, i) / member_length(base.frame, m) ** 2
+        values = np.unique(np.concatenate([np.linspace(-0.6, 0.0, 10), np.linspace(0.0, 2.0, 16)])) * euler
+        curves.append(sweep(base, AXIAL_PRESTRESS, m.name, values, int(np.flatnonzero(values == 0.0)[0]), False))
+    return curves
+
+
+def _joint_curves(base: Baseline) -> list[Curve | None]:
+    values = np.logspace(-1, 1, 2 * (GRID_POINTS // 2) + 1)
+    curves = [sweep(base, JOINT_STIFFNESS_SHIFT, j.name, values, values.size // 2, True) for j in base.frame.joints]
+    if len(base.frame.joints) > 1:  # every joint at once (where null): the file's joint model itself is off
+        curves.append(sweep(base, JOINT_STIFFNESS_SHIFT, None, values, values.size // 2, True))
+    return curves
+
+
+def _shear_curves(base: Baseline) -> list[Curve | None]:
+    frame = base.frame
+    if frame.beam_theory == "timoshenko":
+        return []
+    kappa = next((s.shear_coefficient for s in frame.sections.values() if s.shear_coefficient), 5.0 / 6.0)
+    values = kappa * np.logspace(-1.5, 2, GRID_POINTS)
+    return [sweep(base, SHEAR_DEFORMATION, None, values, values.size - 1, True)]
+
+
+def frame_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray) -> list[Curve]:
+    """One curve per frame-level candidate and place the frame allows (module docstring).
+
+    ``residual`` (n_measured,) relative frequency residual of the baseline and ``weight`` its
+    inverse relative variance, for the added mass's screen.
+    """
+    curves = (_support_curves(base) + _stinger_curves(base) + _axial_curves(base) + _joint_curves(base)
+              + _shear_curves(base) + _mass_curves(base, obs, residual, weight))
+    return [c for c in curves if c is not None]
+
+
+def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray,
+               reach_m: float) -> tuple[tuple[str, dict] | None, float]:
+    """The place within ``reach_m`` of ``node`` whose coarse mass curve fits best, and its cost."""
+    frame, mesh = base.frame, base.model.mesh
+    near = [place for n in range(len(mesh.node_xy)) if np.hypot(*(mesh.node_xy[n] - mesh.node_xy[node])) <= reach_m
+            and (place := _place(frame, mesh, n)) is not None]
+    best, best_cost = None, np.inf
+    for where, fixed in near:
+        cost = _mass_cost(base, obs, where, fixed, coarse)
+        if cost < best_cost:
+            best, best_cost = (where, fixed), cost
+    return best, best_cost
+
+
+def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray,
+                 keep: int = 3, reach_m: float = 0.03) -> list[Curve | None]:
+    """Added-mass curves at the few positions whose mass sensitivity best fits the residual.
+
+    The first-order screen ranks every mesh node; around each of the ``keep`` best (5 cm apart),
+    the nodes within ``reach_m`` are fitted on a coarse exact grid and the best one gets the
+    full grid: the screen is linear, a mass of 10 % of the frame is not.
+    """
+    frame, model, mesh = base.frame, base.model, base.model.mesh
+    shapes = model.expand(base.modes.shapes)[:, base.pairing]
+    translation = shapes[0::3] ** 2 + shapes[1::3] ** 2  # (n_nodes, n_measured): -0.5 m T per kg
+    scores = np.array([explained(-0.5 * translation[node], residual, weight) for node in range(len(mesh.node_xy))])
+    total_mass = float(model.mass.diagonal()[0::3].sum())
+    coarse = total_mass * np.logspace(-3.5, 0, 13)
+    chosen: list[int] = []
+    curves: list[Curve | None] = []
+    for node in np.argsort(scores)[::-1]:
+        if len(chosen) == keep:
+            break
+        if _place(frame, mesh, int(node)) is None or any(
+                np.hypot(*(mesh.node_xy[node] - mesh.node_xy[c])) < 0.05 for c in chosen):
+            continue
+        chosen.append(int(node))
+        best, best_cost = _best_near(base, obs, node, coarse, reach_m)
+        if best is not None and "position" in best[1]:
+            best = _refine_position(base, obs, best[0], best[1]["position"], coarse, frame)[0]
+        elif best is not None:  # a named point: the mass may sit a few mm off it, along a member through it
+            for member, position in _positions_of_point(frame, best[0]):
+                refined, cost = _refine_position(base, obs, member, position, coarse, frame)
+                if cost < best_cost:
+                    best, best_cost = refined, cost
+        if best is not None:
+            values = total_mass * np.logspace(-3.5, 0, GRID_POINTS)
+            curves.append(sweep(base, ADDED_MASS, best[0], values, 0, True, best[1]))
+    return curves
+
+
+def _mass_cost(base: Baseline, obs: Observations, where: str, fixed: dict, masses: np.ndarray) -> float:
+    """Frequency chi-square of the best mass (over the grid ``masses``, kg) at a place."""
+    curve = sweep(base, ADDED_MASS, where, masses, 0, True, fixed)
+    return np.inf if curve is None else fit_curve(base, obs, curve, np.ones(obs.frequency_hz.shape[1], bool))[2]
+
+
+def _refine_position(base: Baseline, obs: Observations, member: str, position: float, masses: np.ndarray,
+                     frame: Frame) -> tuple[tuple[str, dict], float]:
+    """Position of a mass between mesh nodes: a bounded scalar search within one element each side."""
+    step = frame.element_length / member_length(frame, frame.member(member))
+    lo, hi = max(position - step, 0.005), min(position + step, 0.995)
+    res = minimize_scalar(lambda x: _mass_cost(base, obs, member, {"position": float(x)}, masses),
+                          bounds=(lo, hi), method="bounded", options={"xatol": 1e-4, "maxiter": 12})
+    return (member, {"position": round(float(res.x), 4)}), float(res.fun)
+
+
+def members_at(frame: Frame, name: str | None) -> list[tuple[str, float | None]]:
+    """Members a frame name stands on, with its position along each (fraction of the length from the start).
+
+    A member is itself (position None); a point, every member whose segment holds it; a joint, its member.
+    """
+    if name is None:
+        return []
+    if any(m.name == name for m in frame.members):
+        return [(name, None)]
+    if name in frame.points:
+        x, y = frame.points[name]
+        out: list[tuple[str, float | None]] = []
+        for m in frame.members:
+            (x0, y0), (x1, y1) = frame.points[m.start], frame.points[m.end]
+            length = math.hypot(x1 - x0, y1 - y0)
+            off = abs((x1 - x0) * (y - y0) - (y1 - y0) * (x - x0)) / length
+            along = ((x - x0) * (x1 - x0) + (y - y0) * (y1 - y0)) / length
+            if off < 1e-9 * length and -1e-9 * length <= along <= length * (1 + 1e-9):
+                out.append((m.name, along / length))
+        return out
+    return [(j.member, None) for j in frame.joints if j.name == name]
+
+
+def _positions_of_point(frame: Frame, point: str) -> list[tuple[str, float]]:
+    return [(m, p) for m, p in members_at(frame, point) if p is not None]
+
+
+def _place(frame: Frame, mesh: Mesh, node: int) -> tuple[str, dict] | None:
+    """A mesh node as a named point, or as a member and a position along it (None on a support)."""
+    supported = {s.point for s in frame.supports}
+    for name, n in mesh.point_node.items():
+        if n == node:
+            return (None if name in supported else (name, {}))
+    member = int(mesh.element_member[np.flatnonzero((mesh.connectivity == node).any(axis=1))[0]])
+    m = frame.members[member]
+    x0 = np.asarray(frame.points[m.start])
+    position = float(np.hypot(*(mesh.node_xy[node] - x0)) / member_length(frame, m))
+    return m.name, {"position": round(position, 4)}

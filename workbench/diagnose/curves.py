@@ -1,0 +1,114 @@
+"""Exact frequencies of the frame changed by one effect, on a grid of the effect's parameter.
+
+Each candidate is the nominal frame changed by `workbench.rig.effects.apply_effect` with one
+parameter. The frequencies are computed exactly at each grid value, tracked by MAC from the
+no-effect end outward, and interpolated by a cubic spline in the parameter (or its logarithm), so
+that fits are then cheap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from workbench.diagnose.baseline import Baseline
+from workbench.model.assembly import Model, assemble
+from workbench.model.modal import Modes, model_modes
+from workbench.rig.effects import Effect, EffectKind, apply_effect
+from workbench.uq.stochastic import track_modes
+
+__all__ = ["Curve", "sweep"]
+
+
+@dataclass(frozen=True)
+class Curve:
+    """Exact frequencies of the frame changed by one effect, on a grid of its parameter.
+
+    Attributes
+    ----------
+    effect, where, parameter : the effect's name, its place and the parameter of the grid.
+    values : (n_grid,) parameter values, increasing, in the parameter's unit.
+    frequency_hz : (n_grid, count) model frequencies, Hz, tracked to the baseline's modes.
+    log : the spline runs in log(value).
+    fixed : further parameters of the effect, the same on the whole grid.
+    """
+
+    effect: str
+    where: str | None
+    parameter: str
+    values: np.ndarray
+    frequency_hz: np.ndarray
+    log: bool
+    fixed: dict = field(default_factory=dict)
+
+    def coordinate(self, value: float | np.ndarray) -> np.ndarray:
+        """The spline's coordinate of parameter values: log(value) or value."""
+        return np.log(value) if self.log else np.asarray(value, float)
+
+    def parameters(self, u: float) -> dict:
+        """The effect's parameters at the spline coordinate ``u``."""
+        value = float(math.exp(u)) if self.log else float(u)
+        return {self.parameter: value, **self.fixed}
+
+    def interpolant(self) -> CubicSpline:
+        """Model frequencies as a function of `coordinate`, NaN outside the grid."""
+        # a cubic spline: 5 to 20 times closer to exact solves between grid points than PCHIP here
+        return CubicSpline(self.coordinate(self.values), self.frequency_hz, axis=0, extrapolate=False)
+
+
+def sweep(base: Baseline, kind: EffectKind, where: str | None, values: np.ndarray, start: int, log: bool,
+          fixed: dict | None = None) -> Curve | None:
+    """Solve the changed frame at each grid value, from ``values[start]`` (no effect) outward.
+
+    Parameters
+    ----------
+    base : the baseline (nominal frame and mode count).
+    kind : the effect; its ``parameter`` runs over ``values`` (in its unit).
+    where : the effect's place.
+    values : (n_grid,) increasing parameter values.
+    start : index of the value without effect, where the modes are the baseline's in order.
+    log : interpolate in log(value).
+    fixed : further parameters of the effect.
+
+    Returns
+    -------
+    The curve on the grid values where the frame could be solved (a buckled or singular frame
+    ends the grid), or None with fewer than 4 of them.
+    """
+    parameter = kind.parameter
+    if parameter is None:
+        raise ValueError(f"sweep: {kind.name} has no parameter to sweep")
+    fixed = dict(fixed or {})
+    out = np.full((values.size, base.count), np.nan)
+
+    def solve(v: float) -> tuple[Model, Modes]:
+        frame = apply_effect(base.frame, Effect(kind.name, where, {parameter: float(v), **fixed}))
+        model = assemble(frame)
+        return model, model_modes(model, base.count + 2)
+
+    try:
+        model, modes = solve(values[start])
+    except ValueError:
+        return None
+    order = np.arange(base.count)  # next to the no-effect end, the order is the baseline's
+    first = Modes(modes.eigenvalues[order], modes.shapes[:, order])
+    out[start] = first.frequency_hz
+    for direction in (1, -1):
+        previous = first
+        i = start + direction
+        while 0 <= i < values.size:
+            try:
+                model, modes = solve(values[i])
+            except ValueError:  # buckled or singular: the grid ends here
+                break
+            index, _ = track_modes(previous, modes, model.mass)
+            previous = Modes(modes.eigenvalues[index], modes.shapes[:, index])
+            out[i] = previous.frequency_hz
+            i += direction
+    ok = ~np.isnan(out[:, 0])
+    if ok.sum() < 4:
+        return None
+    return Curve(kind.name, where, parameter, values[ok], out[ok], log, fixed)

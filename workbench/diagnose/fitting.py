@@ -1,0 +1,202 @@
+"""Fitting one candidate: in sample, and leave one mode out.
+
+**Frequency candidates** are fitted on their curve (`workbench.diagnose.curves`): a scan of the
+parameter then Brent's method on the frequency chi-square (covariance-weighted). Amplitude
+softening reuses a joint's stiffness curve at ``gamma(a) = 1 - slope * a`` per condition.
+**Damping**: one modal damping ratio for every mode (the baseline; the frame file's ratio is a
+placeholder, not a model), plus for ``joint_damping`` a loss per unit of the joint's strain-energy
+share, fitted by least squares.
+
+**Held-out protocol: leave one mode out.** For each measured mode, every candidate is refitted on
+the other modes and predicts that mode (all its conditions, frequency and damping). The held-out
+error is the error of those predictions. A candidate that fits by bending one parameter to noise
+predicts the held-out modes badly; the effect that is present predicts them. The baseline has no
+frequency parameter, so its held-out frequency error is its in-sample error. Candidates are ranked
+by their total held-out chi-square (frequency and damping, each residual over its standard error);
+the ranking also lists the BIC, ``chi2 + p ln N``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from workbench.diagnose.baseline import Baseline
+from workbench.diagnose.curves import Curve
+from workbench.diagnose.observations import Observations, chi2, frequency_chi2, rms
+from workbench.rig.effects import JOINT_DAMPING
+
+__all__ = ["CandidateFit", "Frequencies", "fit_curve", "damping_fit", "evaluate"]
+
+SCAN_POINTS = 161  # parameter values scanned before Brent's method
+
+
+@dataclass(frozen=True)
+class CandidateFit:
+    """One effect at one place, fitted: in-sample and held-out errors (module docstring)."""
+
+    effect: str
+    where: str | None
+    parameters: dict
+    channel: str  # "frequency" or "damping": the data it changes
+    chi2: float  # in-sample, frequency + damping
+    heldout_chi2: float
+    heldout_chi2_frequency: float
+    heldout_chi2_damping: float
+    freq_rms_rel_error: float
+    heldout_freq_rms_rel_error: float
+    damping_rms_error: float | None
+    heldout_damping_rms_error: float | None
+    parameter_count: int
+    bic: float
+
+
+class Frequencies:
+    """Predicted condition means as a function of one parameter, fitted by a scan and Brent.
+
+    ``u`` is the curve's coordinate (`Curve.coordinate`), or with ``amplitude_joint`` the slope
+    ``c`` of a joint's relative modulus ``gamma(a) = 1 - c a`` on a joint stiffness curve.
+    """
+
+    def __init__(self, base: Baseline, obs: Observations, curve: Curve, amplitude_joint: bool = False):
+        self.base, self.obs, self.curve, self.amplitude = base, obs, curve, amplitude_joint
+        self.spline = curve.interpolant()
+        if amplitude_joint:  # gamma(a) = 1 - c a, c up to 0.9 of what would zero the modulus
+            lowest = float(curve.values.min())
+            c_max = (1.0 - max(lowest, 0.1)) / float(obs.amplitude.max())
+            self.lo, self.hi = 0.0, c_max
+        else:
+            u = curve.coordinate(curve.values)
+            self.lo, self.hi = float(u.min()), float(u.max())
+
+    def predict(self, u: float) -> np.ndarray:
+        """(n_cond, n_measured) predicted means, Hz, at ``u``."""
+        if self.amplitude:
+            model_hz = self.spline(np.log(1.0 - u * self.obs.amplitude))  # (n_cond, n_model)
+        else:
+            model_hz = np.broadcast_to(self.spline(u), (self.obs.amplitude.size, self.base.count))
+        return self.base.frequency(np.asarray(model_hz))
+
+    def fit(self, modes_mask: np.ndarray) -> tuple[float, np.ndarray]:
+        """``(u, predicted means)`` fitted on the modes in ``modes_mask``."""
+        u, predicted, _ = self.fit_cost(modes_mask)
+        return u, predicted
+
+    def fit_cost(self, modes_mask: np.ndarray) -> tuple[float, np.ndarray, float]:
+        """``(u, predicted means, frequency chi-square)`` fitted on the modes in ``modes_mask``."""
+        f = self.obs.frequency_hz[:, modes_mask]
+        cache: dict = {}
+
+        def cost(u: float) -> float:
+            p = self.predict(u)
+            if not np.all(np.isfinite(p[:, modes_mask][~np.isnan(f)])):
+                return np.inf
+            return frequency_chi2(self.obs, p, modes_mask, cache)
+
+        grid = np.linspace(self.lo, self.hi, SCAN_POINTS)
+        costs = np.array([cost(u) for u in grid])
+        i = int(np.argmin(costs))
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        if b > a:
+            res = minimize_scalar(cost, bounds=(a, b), method="bounded", options={"xatol": 1e-6 * (self.hi - self.lo)})
+            u = float(res.x) if res.fun <= costs[i] else float(grid[i])
+        else:
+            u = float(grid[i])
+        return u, self.predict(u), cost(u)
+
+
+def fit_curve(base: Baseline, obs: Observations, curve: Curve,
+              modes_mask: np.ndarray) -> tuple[float, np.ndarray, float]:
+    """`Frequencies.fit_cost` of ``curve``."""
+    return Frequencies(base, obs, curve).fit_cost(modes_mask)
+
+
+def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Least squares of ``zeta = c0 (+ eta * share)``, eta >= 0, on the modes in ``modes_mask``.
+
+    Returns
+    -------
+    (n_cond, n_measured) predicted damping ratios on every mode, and ``{"eta": eta}`` with a share.
+    """
+    if obs.damping is None or obs.damping_se is None:
+        raise ValueError("damping_fit: no damping was measured")
+    d, se = obs.damping[:, modes_mask], obs.damping_se[:, modes_mask]
+    ok = ~np.isnan(d)
+    w = 1.0 / se[ok]
+    columns = [np.ones_like(d)]
+    if share is not None:
+        columns.append(np.broadcast_to(share[modes_mask], d.shape))
+    a = np.stack([c[ok] for c in columns], axis=1) * w[:, None]
+    coef = np.linalg.lstsq(a, d[ok] * w, rcond=None)[0]
+    if share is not None and coef[1] < 0:  # a joint does not remove damping
+        coef = np.array([np.sum(d[ok] * w * w) / np.sum(w * w), 0.0])
+    full = np.ones_like(obs.damping) * coef[0]
+    if share is not None:
+        full = full + coef[1] * share[None, :]
+    return full, ({JOINT_DAMPING.parameter: float(coef[1])} if share is not None else {})
+
+
+def _held_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.ndarray:
+    """Each mode's column predicted by ``fit`` on the other modes."""
+    n_modes = like.shape[1]
+    held = np.full_like(like, np.nan)
+    for k in range(n_modes):
+        mask = np.ones(n_modes, bool)
+        mask[k] = False
+        held[:, k] = fit(mask)[:, k]
+    return held
+
+
+def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], dict], channel: str,
+             fit_frequency: Callable[[np.ndarray], tuple[float, np.ndarray]] | None,
+             fit_damping: Callable[[np.ndarray], tuple[np.ndarray, dict]] | None,
+             obs: Observations, baseline_hz: np.ndarray, p_count: int) -> tuple[CandidateFit, np.ndarray]:
+    """In-sample fit and leave-one-mode-out predictions of one candidate.
+
+    Parameters
+    ----------
+    effect, where, channel : the candidate (``channel``: the data it changes).
+    parameters_of : its parameters from the fitted frequency coordinate.
+    fit_frequency : `Frequencies.fit`, or None for a candidate that leaves the frequencies at ``baseline_hz``.
+    fit_damping : `damping_fit` for a mode mask, or None when no damping was measured.
+    obs : the observations; baseline_hz : (n_cond, n_measured) the baseline's means, Hz.
+    p_count : number of fitted parameters, for the BIC.
+
+    Returns
+    -------
+    The fit, and its in-sample predicted means (n_cond, n_measured), Hz.
+    """
+    everything = np.ones(obs.frequency_hz.shape[1], bool)
+    params: dict = {}
+    if fit_frequency is not None:
+        u, in_f = fit_frequency(everything)
+        params = parameters_of(u)
+        held_f = _held_out(lambda mask: fit_frequency(mask)[1], obs.frequency_hz)
+    else:
+        in_f = held_f = baseline_hz
+    in_chi2 = frequency_chi2(obs, in_f)
+    held_chi2_f = frequency_chi2(obs, held_f)
+    held_chi2_d = 0.0
+    d_rms = held_d_rms = None
+    n_obs = int(np.sum(~np.isnan(obs.frequency_hz)))
+    damping, damping_se = obs.damping, obs.damping_se
+    if damping is not None and damping_se is not None:
+        if fit_damping is None:
+            raise ValueError(f"{effect}: damping was measured, but no damping fit was given")
+        in_d, d_params = fit_damping(everything)
+        held_d = _held_out(lambda mask: fit_damping(mask)[0], damping)
+        if channel == "damping":
+            params = d_params
+        in_chi2 += chi2(in_d - damping, damping_se)
+        held_chi2_d = chi2(held_d - damping, damping_se)
+        d_rms, held_d_rms = rms(in_d - damping), rms(held_d - damping)
+        n_obs += int(np.sum(~np.isnan(damping)))
+    fit = CandidateFit(effect, where, params, channel, in_chi2, held_chi2_f + held_chi2_d, held_chi2_f, held_chi2_d,
+                       rms(in_f / obs.frequency_hz - 1.0), rms(held_f / obs.frequency_hz - 1.0),
+                       d_rms, held_d_rms, p_count, in_chi2 + p_count * math.log(max(n_obs, 2)))
+    return fit, in_f
+
