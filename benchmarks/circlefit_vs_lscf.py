@@ -55,6 +55,8 @@ from workbench.io.real_data import import_brake_reuss, import_unesp_bert  # noqa
 from workbench.extraction.modes import combine, extract_tests, find_mode_bands, fit_modes  # noqa: E402
 from workbench.model.modal import add_noise, modal_superposition  # noqa: E402
 
+FRAMES = Path(__file__).resolve().parents[1] / "frames"  # the real data sets' nominal models
+
 try:
     from sdypy import EMA
 except ImportError as exc:  # a benchmark-only dependency
@@ -208,7 +210,7 @@ def order_sweep(f, frfs, quantity, approx, lower, upper) -> list[np.ndarray]:
 
 
 def unesp(root: Path) -> dict:
-    campaign = import_unesp_bert(root / "unesp-bert-bolted-beam")
+    campaign = import_unesp_bert(root / "unesp-bert-bolted-beam", FRAMES / "unesp_bert.toml")
     tests = campaign.test_ids
     sets = {t: frf_set(campaign, t) for t in tests}
     volts = [float(v) for v in campaign.design.set_index("test_id").loc[tests, "amplitude"]]
@@ -286,7 +288,7 @@ def quadrature(f: np.ndarray, h: np.ndarray) -> float:
 
 
 def brake_reuss(root: Path) -> dict:
-    campaign = import_brake_reuss(root / "rice-brb-brake-reuss-beam", control="force")
+    campaign = import_brake_reuss(root / "rice-brb-brake-reuss-beam", FRAMES / "brake_reuss.toml", control="force")
     tests = campaign.test_ids
     levels = campaign.design.set_index("test_id").loc[tests, "amplitude"].tolist()
     print(f"\n=== Brake-Reuss beam, force-controlled stepped sine, drive-point accelerance, {len(tests)} levels; "

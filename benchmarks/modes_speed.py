@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.model.assembly import assemble
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
 from workbench.model.generate import multibay_for_dofs
 from workbench.model.modal import DENSE_LIMIT, model_modes
 from timing import best_of

@@ -94,7 +94,7 @@ import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
 from workbench.model.assembly import assemble  # noqa: E402
-from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.modal import model_modes  # noqa: E402
 from workbench.uq.smr import adaptive, smr1, smr2  # noqa: E402
 from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference, tracked_frequencies  # noqa: E402
@@ -254,7 +254,7 @@ def run(args) -> None:
         for s in seeds:
             repeat = args.repeat if s == seeds[0] else 1
             t, t_solve, (mean, std, solver) = timed_pce(
-                repeat, lambda s=s: pce_regression(model, joints, order, "latin_hypercube", s))
+                repeat, lambda s=s, order=order: pce_regression(model, joints, order, "latin_hypercube", s))
             errs.append(errors(mean, std, reference))
             if s == seeds[0]:
                 t_first, solve_first, solves = t, t_solve, solver.solves
@@ -264,15 +264,15 @@ def run(args) -> None:
                         float(errs[:, 0].max()), float(errs[:, 1].max()), f"worst of {len(seeds)} seeds"))
 
         t, t_solve, (mean, std, solver) = timed_pce(
-            args.repeat, lambda: pce_regression(model, joints, order, "sobol", None))
+            args.repeat, lambda order=order: pce_regression(model, joints, order, "sobol", None))
         rows.append(Row(f"pce-reg-sobol p={order}", "pce", solver.solves, 0, t, t_solve,
                         *errors(mean, std, reference), "deterministic"))
 
-        t, t_solve, (mean, std, solver) = timed_pce(args.repeat, lambda: pce_projection(model, joints, order, False))
+        t, t_solve, (mean, std, solver) = timed_pce(args.repeat, lambda order=order: pce_projection(model, joints, order, False))
         rows.append(Row(f"pce-quad p={order}", "pce", solver.solves, 0, t, t_solve,
                         *errors(mean, std, reference), f"tensor Gauss {order + 1}^{len(joints.names)}"))
 
-        t, t_solve, (mean, std, solver) = timed_pce(args.repeat, lambda: pce_projection(model, joints, order, True))
+        t, t_solve, (mean, std, solver) = timed_pce(args.repeat, lambda order=order: pce_projection(model, joints, order, True))
         rows.append(Row(f"pce-sparse p={order}", "pce", solver.solves, 0, t, t_solve,
                         *errors(mean, std, reference), "Smolyak Gauss"))
 

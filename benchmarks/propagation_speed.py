@@ -24,9 +24,10 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.model.assembly import assemble  # noqa: E402
-from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.generate import multibay_for_dofs  # noqa: E402
 from workbench.uq.smr import adaptive, sensitivities, smr1, smr2  # noqa: E402
+from workbench.cli import ProgressBars  # noqa: E402
 from workbench.uq.stochastic import joint_model, monte_carlo  # noqa: E402
 from timing import best_of  # noqa: E402
 
@@ -48,7 +49,7 @@ def main() -> None:
     t_smr2, _ = best_of(5, lambda: smr2(model, joints, 10))
     t_adapt, result = best_of(5, lambda: adaptive(model, joints, 10))
     start = time.perf_counter()
-    mc = monte_carlo(model, joints, 10, args.samples, args.seed, progress=True)
+    mc = monte_carlo(model, joints, 10, args.samples, args.seed, progress=ProgressBars())
     t_mc = time.perf_counter() - start
     print(f"\nfour-bolt frame ({model.size} dofs, 4 random joints), first 10 modes")
     print(f"{'method':10s} {'time s':>10s} {'MC / method':>12s}")

@@ -29,7 +29,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from workbench.model.assembly import assemble  # noqa: E402
-from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.generate import multibay_frame  # noqa: E402
 from workbench.report.page import moment_error_figure, save_figure  # noqa: E402
 from workbench.uq.smr import DISPERSION_THRESHOLD, PROXIMITY_THRESHOLD, adaptive, pert2, smr1, smr2  # noqa: E402

@@ -26,7 +26,7 @@ import pandas as pd  # noqa: E402
 
 from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign  # noqa: E402
 from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
-from workbench.model.frame import read_frame  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.io.outputs import write_outputs  # noqa: E402
 from workbench.rig.simulate import LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth  # noqa: E402
 

@@ -56,9 +56,8 @@ def test_loads_tidy_tables(campaign_dir):
     assert c.frf.assign(mag=np.hypot(c.frf.real, c.frf.imag)).groupby("test_id")["mag"].mean().shape == (3,)
 
 
+@pytest.mark.shared("examples/independent-two-test-campaign")
 def test_reads_the_campaign_written_by_another_program():
-    if not EXAMPLE.exists():
-        pytest.skip("../shared is absent")
     before = digest(EXAMPLE)
     c = load_campaign(EXAMPLE)
     assert c.synthetic and c.quantity == "accelerance" and c.test_ids == [1, 2]
@@ -183,25 +182,25 @@ def test_random_valid_campaigns_round_trip_unchanged(tmp_path_factory, levels, t
     shutil.rmtree(directory)
 
 
-def test_frequency_data_from_modes_moments_or_frfs(tmp_path):
-    from workbench.workflow.measured import frequency_data
-    from workbench.model.frame import read_frame
+def test_measured_modes_from_modes_moments_or_frfs(tmp_path):
+    from workbench.workflow.measured import measured_modes
+    from workbench.model.frame_file import read_frame
     from workbench.rig.simulate import RigSettings, simulate_campaign
 
     from conftest import REPO
 
-    table3 = frequency_data(load_campaign(REPO / "campaigns" / "paper_table3_one_bolt_vertical"))
+    table3 = measured_modes(load_campaign(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), None, "identify from")
     assert not table3.has_tests and table3.modes.tolist() == list(range(1, 10))
     assert table3.mean_hz[0] == 26.00 and table3.std_hz[8] == 4.66
 
     frame = read_frame(REPO / "frames" / "one_bolt_vertical.toml")
     factor = Factor("bolt_A", "tightening", {"1": "hand-tight", "2": "1800 N", "3": "6000 N"}, "A")
     campaign, truth = simulate_campaign(frame, (factor,), [{"bolt_A": lv} for lv in "123"], RigSettings(), seed=8)
-    from_frfs = frequency_data(campaign, count=6)
+    from_frfs = measured_modes(campaign, 6, "identify from")
     true = np.array([t["frequency_hz"][:6] for t in truth["tests"]])
     np.testing.assert_allclose(from_frfs.frequency_hz, true, rtol=2e-4)
     np.testing.assert_allclose(from_frfs.mean_hz, true.mean(axis=0), rtol=2e-4)
     with_modes = replace(campaign, modes=pd.DataFrame(
         [(k + 1, m + 1, f, 0.01) for k, row in enumerate(true) for m, f in enumerate(row)],
         columns=["test_id", "mode", "frequency_hz", "damping_ratio"]))
-    np.testing.assert_array_equal(frequency_data(with_modes).frequency_hz, true)
+    np.testing.assert_array_equal(measured_modes(with_modes, None, "identify from").frequency_hz, true)

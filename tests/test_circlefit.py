@@ -72,7 +72,7 @@ def test_noise_free_round_trip(quantity):
 def test_noise_free_frame_modal_constants():
     """A real frame: the modal constants are phi_j phi_k of the mass-normalised model."""
     from workbench.model.assembly import assemble
-    from workbench.model.frame import read_frame
+    from workbench.model.frame_file import read_frame
     from workbench.model.modal import frame_frf, model_modes
     model = assemble(read_frame(Path(__file__).resolve().parents[1] / "frames" / "one_bolt_vertical.toml"))
     modes = model_modes(model, 8)

@@ -11,7 +11,7 @@ import pytest
 
 from workbench.model.assembly import assemble
 from workbench.cli import main
-from workbench.model.frame import write_frame
+from workbench.io.outputs import write_frame
 from workbench.model.generate import multibay_frame
 from workbench.model.modal import model_modes
 
@@ -124,7 +124,7 @@ def test_extract_finds_the_modes_the_rig_put_in(tmp_path):
     import json
 
     from workbench.io.campaign import Factor
-    from workbench.model.frame import read_frame
+    from workbench.model.frame_file import read_frame
     from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 
     from conftest import REPO

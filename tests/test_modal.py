@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 
 from workbench.model.assembly import assemble, element_energies, strain_energy
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
 from workbench.model.generate import multibay_for_dofs, multibay_frame
 from workbench.model.modal import mac, model_modes, solve_modes
 
@@ -135,7 +135,7 @@ def test_sensor_on_a_fixed_dof_is_named():
 
 
 def test_a_span_ending_a_rounding_error_before_a_member_end_keeps_the_members_connected():
-    from workbench.model.frame import parse_frame
+    from workbench.model.frame_file import parse_frame
 
     # member "low" is 0.04000000000000002 m long; its joint span ends at 0.04
     frame = parse_frame({

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from workbench.model.assembly import assemble
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
 
 from conftest import REPO, shared_path

@@ -8,7 +8,7 @@ import json
 import numpy as np
 
 from workbench.model.assembly import assemble
-from workbench.model.frame import parse_frame, read_frame
+from workbench.model.frame_file import parse_frame, read_frame
 from workbench.model.modal import model_modes
 
 from conftest import shared_path

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from workbench.uq import prediction
-from workbench.model.assembly import assemble, with_joint_scale
-from workbench.model.frame import read_frame
+from workbench.model.assembly import assemble
+from workbench.model.joints import frame_with_joint_models, model_at_moduli
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import frame_frf, model_modes
-from workbench.uq.prediction import compare_frequencies, frame_with_joint_models, frf_band
+from workbench.uq.prediction import compare_frequencies, frf_band
 from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference
 
 from conftest import REPO
@@ -119,10 +120,23 @@ def test_chunked_frequency_axis_gives_the_same_band(vertical, band, monkeypatch)
         np.testing.assert_array_equal(getattr(chunked, field), getattr(band, field))
 
 
-def test_progress_bar_goes_to_stderr(vertical, capsys):
-    frf_band(vertical, joint_model(vertical.frame), AXIS[:10], [0.005], samples=3, progress=True)
+def test_progress_reports_every_sample_and_prints_nothing(vertical, capsys):
+    calls = []
+    frf_band(vertical, joint_model(vertical.frame), AXIS[:10], [0.005], samples=3,
+             progress=lambda label, done, total: calls.append((label, done, total)))
+    assert calls == [("FRF band", 1, 3), ("FRF band", 2, 3), ("FRF band", 3, 3)]
     captured = capsys.readouterr()
-    assert "FRF band" in captured.err and captured.out == ""
+    assert captured.err == "" and captured.out == ""
+
+
+def test_the_command_line_turns_progress_into_a_bar_on_stderr(capsys):
+    from workbench.cli import ProgressBars
+
+    bars = ProgressBars()
+    for done in (1, 2, 3):
+        bars("FRF band", done, 3)
+    captured = capsys.readouterr()
+    assert "FRF band" in captured.err and captured.out == "" and bars.bars == {}
 
 
 @pytest.mark.parametrize("change, message", [
@@ -155,8 +169,7 @@ def test_one_bolt_groups_transfer_to_the_four_bolt_frame(four_frame):
     assert new.joints[0].group == "vertical" and four_frame.joints[0].youngs_modulus == 24e9  # a copy
     np.testing.assert_array_equal(joint_model(new).cov, [0.05, 0.3, 0.3, 0.05])
     # the moduli reach the matrices: the assembled copy is the original scaled zone by zone
-    scale = np.array([20 / 24, 60 / 73.5, 60 / 73.5, 20 / 24])
-    scaled = with_joint_scale(assemble(four_frame), scale).stiffness()
+    scaled = model_at_moduli(assemble(four_frame), np.array([20e9, 60e9, 60e9, 20e9])).stiffness()
     assert abs(assemble(new).stiffness() - scaled).max() <= 1e-9 * abs(scaled).max()
 
 

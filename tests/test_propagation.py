@@ -11,7 +11,7 @@ import pytest
 from scipy.special import gammaln
 
 from workbench.model.assembly import assemble
-from workbench.model.frame import parse_frame, read_frame
+from workbench.model.frame_file import parse_frame, read_frame
 from workbench.model.generate import multibay_frame
 from workbench.model.modal import model_modes
 from workbench.uq.smr import (adaptive, eigenvector_derivatives, pert2, propagate, sensitivities, smr1, smr2,
@@ -260,10 +260,10 @@ def test_smr_at_another_operating_point(vertical):
     sensitivities rescaled by gamma are refused where they would be wrong (SMR2, adaptive)."""
     from dataclasses import replace as replace_dc
 
-    from workbench.model.assembly import with_joint_scale
+    from workbench.model.joints import model_at_moduli
 
     frame = vertical.frame
-    moved = with_joint_scale(vertical, np.array([0.5]))
+    moved = model_at_moduli(vertical, np.array([12e9]))  # half the file's 24 GPa
     rebuilt = assemble(replace_dc(frame, joints=tuple(replace_dc(j, youngs_modulus=12e9) for j in frame.joints)))
     joints = JointModel(vertical.joint_names, np.array([0.1]))
     a, b = adaptive(moved, joints, 6), adaptive(rebuilt, joints, 6)

@@ -16,7 +16,7 @@ import pytest
 
 from workbench.io.campaign import Factor
 from workbench.cli import main
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
 from workbench.report.page import SECTION_TITLES, render_report
 from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 from workbench.workflow.measured import load_and_extract

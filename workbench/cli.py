@@ -9,26 +9,31 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
 from workbench.model.assembly import assemble
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
 from workbench.progress import Progress
 from workbench.io.outputs import OutputExistsError, csv_text, json_text, write_outputs
 
-__all__ = ["main"]
+if TYPE_CHECKING:  # annotations only: the estimators load when a command needs them
+    from workbench.identify.bayes import Posterior
+    from workbench.identify.moments import MomentFit
+
+__all__ = ["main", "ProgressBars"]
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line and exit 2, as for any bad input
+    def error(self, message: str) -> NoReturn:  # one line and exit 2, as for any bad input
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-class _Bars:
+class ProgressBars:
     """tqdm bars on standard error for the `workbench.progress` callbacks of the library, one per label."""
 
     def __init__(self) -> None:
@@ -46,7 +51,7 @@ class _Bars:
 
 def _progress() -> Progress | None:
     """Bars when standard error is a terminal; nothing in pipes, logs and tests."""
-    return _Bars() if sys.stderr.isatty() else None
+    return ProgressBars() if sys.stderr.isatty() else None
 
 
 def _positive_int(text: str) -> int:
@@ -86,7 +91,7 @@ def _propagate(args: argparse.Namespace) -> str:
         run["smr2_modes"] = [int(k) + 1 for k in moments.refined.nonzero()[0]]
     if moments.proximity is not None:
         run["proximity_factor"] = [float(p) if np.isfinite(p) else None for p in moments.proximity]
-        run["dispersion"] = moments.dispersion.tolist()
+        run["dispersion"] = np.asarray(moments.dispersion).tolist()
     write_outputs(args.out, {"moments.csv": table, "run.json": json_text(run)}, force=args.force)
     return f"{args.method}: moments of {moments.count} modes in {wall:.3f} s written to {args.out}"
 
@@ -121,28 +126,30 @@ def _extract(args: argparse.Namespace) -> str:
 
 
 def _identify(args: argparse.Namespace) -> str:
+    from workbench.identify.data import check_moments
+    from workbench.identify.moments import moment_matching
+    from workbench.identify.record import identification_record
     from workbench.io.campaign import load_campaign
-    from workbench.workflow.measured import frequency_data
-    from workbench.identify.moments import identification_record, moment_matching
+    from workbench.workflow.measured import measured_modes
 
     campaign = load_campaign(args.campaign)
-    data = frequency_data(campaign, count=args.count)
+    data = measured_modes(campaign, args.count, "identify from")
+    check_moments(data)  # refuse unusable moments before the method's own checks, as before any work
     if args.method == "bayes" and not data.has_tests:
         raise ValueError(f"{args.campaign}: bayes needs every test's frequencies (modes.csv or FRFs); this "
                          "campaign has only published moments (moments.csv): use --method moments")
     model = assemble(campaign.frame)
     start = time.perf_counter()
     files: dict[str, str | bytes] = {}
+    fit: MomentFit | Posterior
     if args.method == "moments":
         fit = moment_matching(model, data, seed=args.seed)
     else:
-        import tempfile
+        from workbench.identify.bayes import bayes_identify
+        from workbench.workflow.posterior import POSTERIOR_FILE, posterior_netcdf
 
-        from workbench.identify.bayes import bayes_identify, save_posterior
-
-        fit = bayes_identify(model, data, seed=args.seed, progress=_progress())
-        with tempfile.TemporaryDirectory() as tmp:  # through write_outputs: all files or none
-            files["posterior.nc"] = save_posterior(fit, tmp).read_bytes()
+        fit = posterior = bayes_identify(model, data, seed=args.seed, progress=_progress())
+        files[POSTERIOR_FILE] = posterior_netcdf(posterior)  # through write_outputs below: all files or none
     wall = time.perf_counter() - start
     record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
     files["identification.json"] = json_text(record)
@@ -192,12 +199,16 @@ def _demo(args: argparse.Namespace) -> str:
 
 
 def _diagnose(args: argparse.Namespace) -> str:
-    from workbench.report.diagnosis_page import diagnose_campaign
+    from workbench.report.diagnosis_page import diagnosis_html
+    from workbench.workflow.diagnosis import diagnose_campaign
 
     def say(message: str) -> None:
         print(f"diagnose: {message}", file=sys.stderr, flush=True)
 
-    record = diagnose_campaign(args.campaign, args.out, args.force, args.count, say)
+    done = diagnose_campaign(args.campaign, args.count, say)
+    record, campaign = done.record, done.campaign
+    page = diagnosis_html(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
+    write_outputs(args.out, {"diagnosis.json": json_text(record), "index.html": page}, force=args.force)
     v = record["verdict"]
     where = f" at {v['where']}" if v["where"] else ""
     return (f"{record['campaign']!r}: {v['effect']}{where}, shrinkage {100 * v['shrinkage']:.0f} % (baseline RMS "
@@ -205,9 +216,12 @@ def _diagnose(args: argparse.Namespace) -> str:
 
 
 def _validate_diagnosis(args: argparse.Namespace) -> str:
-    from workbench.report.diagnosis_page import validate, validation_text
+    from workbench.report.diagnosis_page import validation_text
+    from workbench.workflow.diagnosis import validate, validation_files
 
-    summary = validate(args.cases, args.seed, args.frame, args.out, args.force, progress=_progress())
+    summary = validate(args.cases, args.seed, args.frame, progress=_progress())
+    if args.out is not None:
+        write_outputs(args.out, validation_files(summary), force=args.force)
     print(validation_text(summary))
     return f"{summary['cases']} blind cases" + (f"; written to {args.out}" if args.out else "")
 

@@ -21,7 +21,8 @@ import numpy as np
 import scipy
 
 from workbench.model.assembly import assemble
-from workbench.model.frame import read_frame
+from workbench.model.frame_file import read_frame
+from workbench.cli import ProgressBars
 from workbench.uq.stochastic import joint_model, monte_carlo, quadrature_reference
 
 REPO = Path(__file__).resolve().parents[2]
@@ -38,7 +39,7 @@ def main() -> None:
         model = assemble(read_frame(REPO / "frames" / f"{name}.toml"))
         joints = joint_model(model.frame)
         start = time.perf_counter()
-        mc = monte_carlo(model, joints, 10, SAMPLES, SEED, progress=True)
+        mc = monte_carlo(model, joints, 10, SAMPLES, SEED, progress=ProgressBars())
         mc_time = time.perf_counter() - start
         se_mean, se_std = mc.standard_errors()
         quad = quadrature_reference(model, joints, 10, points=12)

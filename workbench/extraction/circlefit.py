@@ -299,6 +299,7 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
             sol = least_squares(residual, [phi0, 1.0, np.log(z0)], method="lm", xtol=1e-15, ftol=1e-15)
             if best is None or sol.cost < best.cost:
                 best, best_sense, scale = sol, sense, w0
+    assert best is not None  # three starts always ran
     zeta = float(np.exp(np.clip(best.x[2], -30.0, 5.0)))
     return float(best.x[0]), float(best.x[1] * scale), zeta, best_sense
 

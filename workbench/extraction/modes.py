@@ -262,7 +262,9 @@ def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damp
     out = {k: np.zeros(shape) for k in ("frequency_median", "frequency_p90", "damping_median",
                                         "damping_p90", "ok_fraction")}
     for i, level in enumerate(snr):
-        ef, ez, ok = [[] for _ in fr], [[] for _ in fr], [[] for _ in fr]
+        ef: list[list[float]] = [[] for _ in fr]
+        ez: list[list[float]] = [[] for _ in fr]
+        ok: list[list[bool]] = [[] for _ in fr]
         for seed in seeds:
             noisy = add_noise(clean, level, np.random.default_rng(seed))
             for r in range(fr.size):

@@ -7,6 +7,7 @@ propagation methods can be timed at that scale.
 
 from __future__ import annotations
 
+from workbench.model.assembly import mesh_frame
 from workbench.model.frame import (FIXED, DofRef, Frame, Joint, Material, Member, PointMass, Section, Sensor,
                     Support)
 
@@ -78,6 +79,4 @@ def multibay_for_dofs(dofs: int, bays: int = 6, storeys: int = 6) -> Frame:
 
 
 def _node_count(frame: Frame) -> int:
-    from workbench.model.assembly import mesh_frame
-
     return len(mesh_frame(frame).node_xy)

@@ -8,11 +8,15 @@ contract's exp(+i omega t) convention: a receptance is ``1 / (k - omega^2 m + i 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
+
+from workbench.model.assembly import strain_energy
 
 __all__ = [
     "DENSE_LIMIT",
@@ -133,13 +137,11 @@ def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndar
         method = "dense" if n <= DENSE_LIMIT or count >= n - 1 else "sparse"
     sigma = SHIFT
     if method == "dense":
-        k = stiffness.toarray() if sp.issparse(stiffness) else np.asarray(stiffness)
-        m = mass.toarray() if sp.issparse(mass) else np.asarray(mass)
+        k = cast(sp.spmatrix, stiffness).toarray() if sp.issparse(stiffness) else np.asarray(stiffness)
+        m = cast(sp.spmatrix, mass).toarray() if sp.issparse(mass) else np.asarray(mass)
         guard = min(n, max(2 * count, count + 8))
         # OpenBLAS 0.3.31's threaded sygvx segfaulted at 20 000 dofs here; single-threaded it
         # completes (19 min), so large dense solves run on one thread.
-        from threadpoolctl import threadpool_limits
-
         try:
             with threadpool_limits(limits=1 if n > DENSE_THREAD_LIMIT else None):
                 values, vectors = sla.eigh(k, m, subset_by_index=[0, guard - 1])
@@ -186,8 +188,6 @@ def model_modes(model, count: int = 10, gamma: np.ndarray | None = None, method:
     square of the eigenvector error, and free of the cancellation that limits ``phi^T K phi`` on
     the assembled matrix to about 1e-7. Dense and sparse solutions then agree to about 1e-11.
     """
-    from workbench.model.assembly import strain_energy
-
     modes = solve_modes(model.stiffness(gamma), model.mass, count, method)
     values = strain_energy(model, modes.shapes, gamma)
     order = np.argsort(values, kind="stable")

@@ -218,9 +218,9 @@ def _posterior_section(study: Study) -> str:
     post = study.posterior
     if post is None:
         return _absent(f"the Bayesian estimator was {study.bayes_note}.")
-    from workbench.identify.bayes import _arviz  # arviz imported with its FutureWarning silenced
+    from workbench.identify.bayes import load_arviz  # arviz imported with its FutureWarning silenced
 
-    fig = posterior_figure(post, _arviz())
+    fig = posterior_figure(post, load_arviz())
     rows = []
     values = np.concatenate([post.youngs_modulus, post.cov, post.sigma])
     cis = np.concatenate([post.youngs_modulus_ci95, post.cov_ci95, post.sigma_ci95])
@@ -272,6 +272,7 @@ def _band_section(study: Study) -> str:
         return _absent(study.band_note)
     band = study.band
     ex = study.extraction
+    assert ex is not None  # a band is computed only against measured FRFs (study_campaign)
     windows = mode_windows(band, ex.frequency_hz(), ex.mean_damping())
     return (html_figure(band_zoom_figure(band, ex.sets, windows),
                     "The band around each measured mode, at the sensor where it peaks highest (legend as below).",
@@ -347,7 +348,8 @@ def _steps_table(run: Run) -> str:
     """Every step's wall time; circle fits of several campaigns run in parallel processes, so their
     times overlap the run's "load and circle-fit" step instead of adding to it."""
     rows = [("(run)", s.name, s.detail, "-" if s.seed is None else s.seed, f"{s.wall_time_s:.2f}") for s in run.steps]
-    for item in (*run.studies, *run.predictions):
+    items: list[Study | Prediction] = [*run.studies, *run.predictions]
+    for item in items:
         rows += [(item.name, s.name, s.detail, "-" if s.seed is None else s.seed, f"{s.wall_time_s:.2f}")
                  for s in item.steps]
     return html_table(["campaign", "step", "detail", "seed", "wall time (s)"], rows, left=3)

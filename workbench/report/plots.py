@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from workbench.io.outputs import write_file  # noqa: E402
 from workbench.model.modal import FRFSet  # noqa: E402
 from workbench.uq.prediction import FRFBand  # noqa: E402
 from workbench.workflow.measured import NyquistData  # noqa: E402
@@ -83,14 +84,11 @@ def moment_error_figure(panels: Mapping[str, tuple[Mapping[str, np.ndarray], Map
 
 
 def save_figure(fig: Figure, path: str | Path) -> Path:
-    """Write ``fig`` as PNG (whole or not at all) and close it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=120)
+    """Write ``fig`` as PNG (whole or not at all, `write_file`) and close it."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=120)
     plt.close(fig)
-    tmp.replace(path)
-    return path
+    return write_file(path, buffer.getvalue())
 
 
 def figure_png(fig: Figure, dpi: int = 90) -> bytes:

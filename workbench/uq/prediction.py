@@ -4,24 +4,22 @@
 joint moduli follow the Gamma laws of eq. (8)-(9), as in the paper's Figures 12, 14 and 16: Monte
 Carlo over the joints, one exact eigen-solve per sample, the modes tracked against the nominal ones
 by MAC (`workbench.uq.stochastic.track_modes`), and the FRF by modal superposition with the measured
-modal damping of each tracked mode. `frame_with_joint_models` applies joint models identified on
-the one-bolt frames to the two- and four-bolt frames (section 5), and `compare_frequencies` sets
-the predicted frequency moments beside the measured ones.
+modal damping of each tracked mode. For section 5, the joint models identified on the one-bolt
+frames are set on the two- and four-bolt frames by `workbench.model.joints.frame_with_joint_models`;
+`compare_frequencies` sets the predicted frequency moments beside the measured ones.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.model.frame import Frame
 from workbench.progress import Progress, report
 from workbench.model.modal import QUANTITIES, Modes, frame_frf, modal_superposition, model_modes, solve_modes
 from workbench.uq.stochastic import FrequencyMoments, JointModel, track_modes
 
-__all__ = ["FRFBand", "frf_band", "frame_with_joint_models", "FrequencyComparison", "compare_frequencies"]
+__all__ = ["FRFBand", "frf_band", "FrequencyComparison", "compare_frequencies"]
 
 MODES_ABOVE = 4  # modes summed above the band: their quasi-static tail shapes the FRF below it
 TRACKING_MODES = 4  # modes solved beyond those summed, so that a mode moving up is still tracked
@@ -184,50 +182,6 @@ def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio:
         stats["p05"][:, cut], stats["p95"][:, cut] = np.percentile(block, [5.0, 95.0], axis=0)
     return FRFBand(f, reference.responses, quantity, reference.values, natural_hz=natural,
                    samples=int(samples), seed=int(seed), **stats)
-
-
-def frame_with_joint_models(frame: Frame, models: Mapping[str, tuple[float, float]]) -> Frame:
-    """Copy of ``frame`` with joint models given per joint group or per joint (section 5 transfer).
-
-    The paper identifies one model per joint family on the one-bolt frames (Table 4: vertical
-    24 GPa, CoV 0.09; horizontal 73.5 GPa, CoV 0.22) and predicts the two- and four-bolt frames
-    with them; the bundled frames name those families by their joints' ``group``.
-
-    Parameters
-    ----------
-    frame : the frame to predict.
-    models : ``{name: (youngs_modulus_pa, cov)}``, ``name`` a joint group, or a joint name (which
-        wins over its group's entry). Joints that no key names keep the file's values.
-
-    Returns
-    -------
-    Frame
-        The same frame with the new joint means (Pa) and CoVs (of the Gamma law, eq. 8-9).
-
-    Raises
-    ------
-    ValueError
-        A key naming no group or joint (the message lists the known names), or a modulus that is
-        not finite and positive, or a CoV that is not finite and non-negative.
-    """
-    names = set(frame.joint_names)
-    groups = {j.group for j in frame.joints}
-    for key, (modulus, cov) in models.items():
-        if key not in names and key not in groups:
-            known = ", ".join(sorted(groups | names)) or "none"
-            raise ValueError(f"{frame.source}: joint models: no joint group or joint named {key!r} (known: {known})")
-        if not (np.isfinite(modulus) and modulus > 0 and np.isfinite(cov) and cov >= 0):
-            raise ValueError(f"joint models: {key!r}: expected a finite positive modulus and a finite "
-                             f"cov >= 0, got ({modulus}, {cov})")
-    joints = []
-    for joint in frame.joints:
-        key = joint.name if joint.name in models else joint.group if joint.group in models else None
-        if key is None:
-            joints.append(joint)
-            continue
-        modulus, cov = models[key]
-        joints.append(replace(joint, youngs_modulus=float(modulus), cov=float(cov)))
-    return replace(frame, joints=tuple(joints))
 
 
 @dataclass(frozen=True)

@@ -51,7 +51,7 @@ from scipy.integrate import quad
 from workbench.model.assembly import joint_energies
 from workbench.progress import Progress
 from workbench.model.modal import Modes, model_modes
-from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule
+from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule, monte_carlo
 
 __all__ = [
     "PROXIMITY_THRESHOLD",
@@ -99,7 +99,7 @@ class Sensitivities:
         """SMR2, adaptive and Pert2 differentiate the model itself: they need its nominal point."""
         if self.scale is not None and not np.allclose(self.scale, 1.0, rtol=0.0, atol=1e-12):
             raise ValueError("sensitivities computed at a joint scale gamma != 1 serve SMR1 only; for SMR2, "
-                             "adaptive and Pert2 move the model there with workbench.model.assembly.with_joint_scale")
+                             "adaptive and Pert2 move the model there with workbench.model.joints.model_at_moduli")
 
 
 def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
@@ -107,7 +107,7 @@ def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensiti
 
     With ``gamma``, ``lambda_kj`` is relative to that point: right for SMR1, which needs only the
     nominal solve there. SMR2, adaptive and Pert2 refuse such sensitivities; give them the model
-    moved to that point instead (`workbench.model.assembly.with_joint_scale`).
+    moved to that point instead (`workbench.model.joints.model_at_moduli`).
     """
     modes = model_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
     rest, joints = joint_energies(model, modes.shapes)
@@ -337,6 +337,7 @@ def adaptive(model, joints: JointModel, count: int = 10, proximity_threshold: fl
     sens = sens or sensitivities(model, count)
     sens.require_nominal()
     first = smr1(model, joints, count, sens)
+    assert first.proximity is not None and first.dispersion is not None  # smr1 always fills both
     refined = (first.proximity < proximity_threshold) | (first.dispersion > dispersion_threshold)
     mean, std = first.mean_hz.copy(), first.std_hz.copy()
     if np.any(refined):
@@ -392,7 +393,5 @@ def propagate(model, joints: JointModel, method: str, count: int = 10, samples: 
     if method == "pert2":
         return pert2(model, joints, count)
     if method == "mc":
-        from workbench.uq.stochastic import monte_carlo
-
         return monte_carlo(model, joints, count, samples, seed, workers, progress).moments
     raise ValueError(f"method: {method!r} is not one of {', '.join(METHODS)}")

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
+from threadpoolctl import threadpool_limits
 
 from workbench.progress import Progress, report
 from workbench.model.modal import Modes, model_modes, solve_modes
@@ -182,6 +183,7 @@ def expectation_rule(joints: JointModel, seed: int = 0) -> tuple[np.ndarray, np.
         gamma[:, r] = np.stack([g.ravel() for g in grids], axis=1)
         weights = np.prod(np.stack([w.ravel() for w in wgrid], axis=1), axis=1)
         return gamma, weights
+    # scipy.stats takes a third of a second to import and only more than 4 random joints need it
     from scipy.stats import gamma as gamma_law
     from scipy.stats import qmc
 
@@ -228,8 +230,6 @@ def tracked_frequencies(model, nominal: Modes, gammas: np.ndarray, extra_modes: 
 
 def _worker_chunk(args) -> tuple[np.ndarray, np.ndarray]:
     # One BLAS thread per worker process: several multithreaded BLAS on 2 cores thrash.
-    from threadpoolctl import threadpool_limits
-
     with threadpool_limits(1):
         return tracked_frequencies(*args)
 

@@ -4,7 +4,7 @@
 (`workbench.extraction.modes.extract_tests`; `workbench extract`, the report and the demo all call it);
 `load_campaigns` runs it for several campaigns in worker processes. `Extraction` gives the
 per-test frequencies and damping as arrays (NaN where a fit is unusable), the identification's
-`FrequencyData`, and the measured mean damping that the FRF synthesis uses (paper 2.2.2);
+`MeasuredModes`, and the measured mean damping that the FRF synthesis uses (paper 2.2.2);
 `nyquist_data` and `mode_windows` prepare what the report draws of them. `measured_modes` turns a
 campaign (modes.csv, FRFs or published moments) into the one `MeasuredModes` record. No matplotlib here.
 """
@@ -22,17 +22,14 @@ import pandas as pd
 
 from workbench.extraction.circlefit import to_mobility
 from workbench.extraction.modes import ModeEstimate, extract_tests
-from workbench.diagnose.diagnosis import ModalData
 from workbench.extraction.records import MeasuredModes
-from workbench.identify.moments import FrequencyData
 from workbench.io.campaign import Campaign, CampaignError, amplitude_of_tests, frf_set, load_campaign
 from workbench.progress import Progress, report
 from workbench.model.modal import modal_superposition
 from workbench.uq.prediction import FRFBand
 
 __all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract", "load_campaigns",
-           "campaign_label", "frequency_axis", "NyquistData", "nyquist_data", "mode_windows", "measured_modes",
-           "frequency_data", "modal_data"]
+           "campaign_label", "frequency_axis", "NyquistData", "nyquist_data", "mode_windows", "measured_modes"]
 
 # A mode whose combined fit carries one of these flags is left out of that test, as in
 # `measured_modes`: the circle is lost in noise or is not a circle.
@@ -88,9 +85,15 @@ class Extraction:
         found = np.isfinite(usable).any(axis=0)
         return np.where(found, np.nanmean(np.where(found, usable, 0.0), axis=0), every.mean(axis=0))
 
-    def frequency_data(self, source: str) -> FrequencyData:
-        """The identification's input: every test's usable frequencies (`FrequencyData.from_tests`)."""
-        return FrequencyData.from_tests(tuple(self.tests), self.modes, self.frequency_hz(), source)
+    def measured_modes(self, source: str) -> MeasuredModes:
+        """The identification's input: every test's usable frequencies and damping (NaN where the fit is
+        unusable, `UNUSABLE_FLAGS`), with the fits' scatter over the sensors (NaN there too) and flags."""
+        return MeasuredModes(self.frequency_hz(), modes=self.modes, damping_ratio=self.damping_ratio(),
+                             tests=tuple(self.tests),
+                             frequency_scatter_hz=self._table(lambda e: e.frequency_scatter, True),
+                             damping_scatter=self._table(lambda e: e.damping_scatter, True),
+                             flags=tuple(tuple(e.flags for e in self.estimates[t]) for t in self.tests),
+                             source=source)
 
 
 def extract_campaign(campaign, bands=None, count: int | None = None) -> Extraction:
@@ -116,28 +119,33 @@ def extract_campaign(campaign, bands=None, count: int | None = None) -> Extracti
     return Extraction(sets, tuple(found), estimates, time.perf_counter() - start)
 
 
-def load_and_extract(path: str | Path):
+Loaded = tuple[Campaign, Extraction | None]
+"""A loaded campaign and its circle-fit modes (None without FRFs)."""
+
+
+def load_and_extract(path: str | Path) -> Loaded:
     """``(campaign, extraction or None)`` of a campaign directory; None when it has no FRFs."""
     campaign = load_campaign(path)
     return campaign, (extract_campaign(campaign) if campaign.frf is not None else None)
 
 
-def load_campaigns(paths: Sequence[str | Path], workers: int = 1, progress: Progress | None = None) -> dict:
+def load_campaigns(paths: Sequence[str | Path], workers: int = 1,
+                   progress: Progress | None = None) -> dict[str, Loaded]:
     """`load_and_extract` of several campaigns, ``workers`` processes at a time (the circle fits
     of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given."""
-    paths = list(dict.fromkeys(str(p) for p in paths))
-    done = {}
-    if workers > 1 and len(paths) > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, len(paths))) as pool:
-            futures = {pool.submit(load_and_extract, p): p for p in paths}
+    names = list(dict.fromkeys(str(p) for p in paths))
+    done: dict[str, Loaded] = {}
+    if workers > 1 and len(names) > 1:
+        with ProcessPoolExecutor(max_workers=min(workers, len(names))) as pool:
+            futures = {pool.submit(load_and_extract, p): p for p in names}
             for future in as_completed(futures):
                 done[futures[future]] = future.result()
-                report(progress, "circle fits", len(done), len(paths))
+                report(progress, "circle fits", len(done), len(names))
     else:
-        for p in paths:
+        for p in names:
             done[p] = load_and_extract(p)
-            report(progress, "circle fits", len(done), len(paths))
-    return {p: done[p] for p in paths}
+            report(progress, "circle fits", len(done), len(names))
+    return {p: done[p] for p in names}
 
 
 @dataclass(frozen=True)
@@ -285,18 +293,3 @@ def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = 
     return MeasuredModes(wide.to_numpy(float), modes=wide.columns.to_numpy(), damping_ratio=damping,
                          tests=tuple(wide.index), amplitude=amplitude_of_tests(campaign), source=source)
 
-
-def frequency_data(campaign: Campaign, count: int | None = None) -> FrequencyData:
-    """The campaign's measured eigenfrequencies for identification (`measured_modes`)."""
-    m = measured_modes(campaign, count, "identify from")
-    if m.published:
-        return FrequencyData(m.modes, m.mean_hz, m.std_hz, source=m.source)
-    return FrequencyData.from_tests(m.tests, m.modes, m.frequency_hz, m.source)
-
-
-def modal_data(campaign: Campaign, count: int | None = None) -> ModalData:
-    """The campaign's modes for the diagnosis (`measured_modes`)."""
-    m = measured_modes(campaign, count, "diagnose")
-    if m.published:
-        return ModalData(m.frequency_hz, std_hz=m.std_hz, tests_count=m.tests_count, modes=m.modes)
-    return ModalData(m.frequency_hz, m.damping_ratio, m.amplitude, modes=m.modes)

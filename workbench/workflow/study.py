@@ -10,7 +10,7 @@ with the measured mean modal damping of each mode (paper 2.2.2).
 
 Section 5 (`predict_campaign`): the joint models identified on the one-bolt frames, one per joint
 group (vertical, horizontal; Table 4), applied to a multi-bolt frame
-(`workbench.uq.prediction.frame_with_joint_models`), whose frequency moments (adaptive SMR) and FRF
+(`workbench.model.joints.frame_with_joint_models`), whose frequency moments (adaptive SMR) and FRF
 band are set against that frame's own measured FRFs and circle-fit frequencies (Figures 14, 16).
 
 Each stage returns a frozen record that the report draws (`workbench.report.page`, `workbench.report.plots`).
@@ -29,11 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.identify.bayes import Posterior
+from workbench.io.campaign import Campaign
 from workbench.model.assembly import assemble
-from workbench.identify.moments import FrequencyData, MomentFit, moment_matching
-from workbench.workflow.measured import Extraction, campaign_label, extract_campaign, frequency_axis, load_campaigns
+from workbench.model.frame import Frame
+from workbench.extraction.records import MeasuredModes
+from workbench.identify.moments import MomentFit, moment_matching
+from workbench.model.joints import frame_with_joint_models
+from workbench.workflow.measured import (Extraction, Loaded, campaign_label, extract_campaign, frequency_axis, load_campaigns,
+                                        measured_modes)
 from workbench.progress import Progress
-from workbench.uq.prediction import FRFBand, FrequencyComparison, compare_frequencies, frame_with_joint_models, frf_band
+from workbench.uq.prediction import FRFBand, FrequencyComparison, compare_frequencies, frf_band
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, MonteCarloResult, joint_model, monte_carlo, quadrature_reference
 
 __all__ = ["ACCURACY_METHODS", "Step", "Accuracy", "JointSource", "Study", "study_campaign", "joint_sources",
@@ -66,7 +72,11 @@ class _Steps:
 
     def add(self, name: str, start: float | None, detail: str = "", seed: int | None = None,
             wall_time_s: float | None = None) -> None:
-        step = Step(name, time.perf_counter() - start if wall_time_s is None else wall_time_s, detail, seed)
+        if wall_time_s is None:
+            if start is None:
+                raise ValueError(f"step {name!r}: give its start time or its wall time")
+            wall_time_s = time.perf_counter() - start
+        step = Step(name, wall_time_s, detail, seed)
         self.items.append(step)
         if self.notify is not None:
             self.notify(f"{self.prefix}{name}: {detail} ({step.wall_time_s:.1f} s)")
@@ -163,12 +173,12 @@ class Study:
     steps : the steps run, with their wall times and seeds.
     """
 
-    campaign: object
+    campaign: Campaign
     extraction: Extraction | None
-    data: FrequencyData
+    data: MeasuredModes
     moments: MomentFit
-    joints: dict
-    posterior: object | None
+    joints: dict[str, JointSource]
+    posterior: Posterior | None
     accuracy: Accuracy | None
     band: FRFBand | None
     steps: tuple[Step, ...]
@@ -182,7 +192,7 @@ class Study:
         return campaign_label(self.campaign)
 
 
-def _bayes_refusal(campaign, data: FrequencyData, bayes: bool) -> str:
+def _bayes_refusal(campaign, data: MeasuredModes, bayes: bool) -> str:
     if not bayes:
         return "not run: skipped on request (--no-bayes, or the demo's time budget)"
     if not data.has_tests:
@@ -213,8 +223,6 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     workers : processes of the Monte Carlo reference.
     progress : called as the long steps advance (`workbench.progress`); notify : one line per finished step.
     """
-    from workbench.workflow.measured import frequency_data
-
     steps = _Steps(notify, f"{campaign_label(campaign)}: ")
     source = str(campaign.path or campaign.name)
     extraction_note = ""
@@ -223,12 +231,12 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     if extraction is not None:
         steps.add("circle fit", None, f"{len(extraction.bands)} modes x {len(extraction.tests)} tests",
                   wall_time_s=extraction.wall_time_s)
-        data = extraction.frequency_data(source + " (modes by circle fit of its FRFs)")
+        data = extraction.measured_modes(source + " (modes by circle fit of its FRFs)")
     else:
         extraction_note = ("The campaign holds no FRFs (only "
                            f"{'published moments' if campaign.moments is not None else 'extracted modes'}), "
                            "so there are no measured FRFs to overlay and no circle fit to show.")
-        data = frequency_data(campaign)
+        data = measured_modes(campaign, None, "identify from")
 
     model = assemble(campaign.frame)
     start = time.perf_counter()
@@ -302,10 +310,10 @@ class Prediction:
     steps : wall times and seeds.
     """
 
-    campaign: object
+    campaign: Campaign
     extraction: Extraction
-    sources: dict
-    frame: object
+    sources: dict[str, JointSource]
+    frame: Frame
     moments: FrequencyMoments
     band: FRFBand
     comparison: FrequencyComparison
@@ -386,12 +394,10 @@ def identify_sources(loaded: Mapping[str, tuple], seed: int = 0) -> dict[str, Jo
     ValueError
         Two campaigns identify the same joint group.
     """
-    from workbench.workflow.measured import frequency_data
-
     sources: dict[str, JointSource] = {}
     for path, (campaign, extraction) in loaded.items():
-        data = (extraction.frequency_data(f"{path} (modes by circle fit of its FRFs)") if extraction is not None
-                else frequency_data(campaign))
+        data = (extraction.measured_modes(f"{path} (modes by circle fit of its FRFs)") if extraction is not None
+                else measured_modes(campaign, None, "identify from"))
         fit = moment_matching(assemble(campaign.frame), data, seed=seed)
         for group, source in joint_sources(fit, campaign_label(campaign)).items():
             if group in sources:
@@ -412,7 +418,7 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
     campaign, extraction = loaded[str(campaign_path)]
     study = study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes, bayes_steps=bayes_steps,
                            workers=workers, progress=progress, notify=notify)
-    predictions = ()
+    predictions: tuple[Prediction, ...] = ()
     if joints_from:
         if extraction is None:
             raise ValueError(f"{campaign_path}: the campaign has no FRFs to set a prediction against")
@@ -424,6 +430,15 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
                                         progress=progress, notify=notify),)
     return Run(f"Identification report: {study.name}", (study,), predictions, tuple(run_steps), seed, samples,
                bayes_steps)
+
+
+def _predict_loaded(loaded: Loaded, sources: Mapping[str, JointSource], seed: int, samples: int,
+                    progress: Progress | None, notify: Notify) -> Prediction:
+    campaign, extraction = loaded
+    if extraction is None:
+        raise ValueError(f"{campaign.path}: the campaign has no FRFs to set a prediction against")
+    return predict_campaign(campaign, extraction, sources, seed=seed, samples=samples, progress=progress,
+                            notify=notify)
 
 
 def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, bayes_steps: int = 2000,
@@ -456,7 +471,7 @@ def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, ba
                                    bayes_steps=bayes_steps, workers=workers, progress=progress, notify=notify)
                     for n in DEMO_STUDIES)
     sources = {g: s for study in studies for g, s in study.joints.items()}
-    predictions = tuple(predict_campaign(*loaded[str(root / n)], sources, seed=seed, samples=samples,
-                                         progress=progress, notify=notify) for n in DEMO_PREDICTIONS)
+    predictions = tuple(_predict_loaded(loaded[str(root / n)], sources, seed, samples, progress, notify)
+                        for n in DEMO_PREDICTIONS)
     return Run("Bolted-joint variability: identification on one-bolt frames, prediction of multi-bolt frames",
                studies, predictions, tuple(run_steps), seed, samples, bayes_steps)
