@@ -50,9 +50,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
+from workbench.extraction.modes import combine, extract_tests, find_mode_bands, fit_modes  # noqa: E402
 from workbench.io.campaign import frf_set  # noqa: E402
 from workbench.io.real_data import import_brake_reuss, import_unesp_bert  # noqa: E402
-from workbench.extraction.modes import combine, extract_tests, find_mode_bands, fit_modes  # noqa: E402
 from workbench.model.modal import add_noise, modal_superposition  # noqa: E402
 
 FRAMES = Path(__file__).resolve().parents[1] / "frames"  # the real data sets' nominal models

@@ -18,13 +18,13 @@ import argparse  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from timing import best_of  # noqa: E402
 
 from workbench.model.assembly import assemble  # noqa: E402
 from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.modal import model_modes, solve_modes  # noqa: E402
 from workbench.uq.prediction import TRACKING_MODES, frf_band  # noqa: E402
 from workbench.uq.stochastic import joint_model  # noqa: E402
-from timing import best_of  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -11,12 +11,12 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from timing import best_of
 
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.generate import multibay_for_dofs
 from workbench.model.modal import DENSE_LIMIT, model_modes
-from timing import best_of
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -92,13 +92,13 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
+from timing import best_of  # noqa: E402
 
 from workbench.model.assembly import assemble  # noqa: E402
 from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.modal import model_modes  # noqa: E402
 from workbench.uq.smr import adaptive, smr1, smr2  # noqa: E402
 from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference, tracked_frequencies  # noqa: E402
-from timing import best_of  # noqa: E402
 
 try:
     import chaospy

@@ -22,14 +22,14 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from timing import best_of  # noqa: E402
 
+from workbench.cli import ProgressBars  # noqa: E402
 from workbench.model.assembly import assemble  # noqa: E402
 from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.model.generate import multibay_for_dofs  # noqa: E402
 from workbench.uq.smr import adaptive, sensitivities, smr1, smr2  # noqa: E402
-from workbench.cli import ProgressBars  # noqa: E402
 from workbench.uq.stochastic import joint_model, monte_carlo  # noqa: E402
-from timing import best_of  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

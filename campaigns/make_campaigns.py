@@ -25,9 +25,9 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign  # noqa: E402
-from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
-from workbench.model.frame_file import read_frame  # noqa: E402
 from workbench.io.outputs import write_outputs  # noqa: E402
+from workbench.model.frame_file import read_frame  # noqa: E402
+from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
 from workbench.rig.simulate import LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -83,7 +83,7 @@ def synthetic_readme(name: str, frame_file: str, seed: int, title: str, factors,
     lines = [
         f"# {name}: {title} (synthetic)",
         "",
-        "**Synthetic data**, produced by the workbench's virtual test rig (`workbench/rig.py`), not measured.",
+        "**Synthetic data**, produced by the workbench's virtual test rig (`workbench/rig/`), not measured.",
         f"The design and the factor definitions follow {PAPER_REF}.",
         "",
         "| item | value |",

@@ -14,8 +14,15 @@ import time
 import numpy as np
 
 # build_frames sets one BLAS thread and the import path before numpy's first use
-from build_frames import (CONFIGURATIONS, HERE, TABLE2_JOINT_MODULUS, frequencies, read_table2, rms_max_error,
-                          with_joint_modulus)
+from build_frames import (
+    CONFIGURATIONS,
+    HERE,
+    TABLE2_JOINT_MODULUS,
+    frequencies,
+    read_table2,
+    rms_max_error,
+    with_joint_modulus,
+)
 
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame

@@ -6,11 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ALUMINIUM, CLAMP, bar_section, straight_beam
 
 from workbench.model.assembly import assemble
 from workbench.model.modal import model_modes
-
-from conftest import ALUMINIUM, CLAMP, bar_section, straight_beam
 
 # Roots of 1 + cos(bL) cosh(bL) = 0 (cantilever) and 1 - cos cosh = 0 (clamped-clamped).
 CANTILEVER_BL = [1.8751040687, 4.6940911330, 7.8547574382, 10.9955407349, 14.1371683910]

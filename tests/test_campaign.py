@@ -4,19 +4,18 @@ never changed, and random valid campaigns round-tripping through write and load 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import replace
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import SHARED
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from workbench.io.campaign import Campaign, CampaignError, Factor, load_campaign, frf_set, write_campaign
+from workbench.io.campaign import Campaign, CampaignError, Factor, frf_set, load_campaign, write_campaign
 from workbench.model.generate import multibay_frame
-
-from conftest import SHARED
 
 EXAMPLE = SHARED / "examples" / "independent-two-test-campaign"
 
@@ -102,7 +101,8 @@ REJECTIONS = [
      "frf.csv: line 3: duplicated row (test_id = 1, sensor = top, frequency_hz = 10.0)"),
     ("non-monotonic frequencies", lambda d: edit(d / "frf.csv", "1,top,30,", "1,top,15,"),
      "frf.csv: line 4: frequency_hz = 15 does not increase within test 1, sensor top"),
-    ("NaN value", lambda d: set_field(d / "frf.csv", 4, 3, "nan"), "frf.csv: line 4: real = 'nan' is not a finite number"),
+    ("NaN value", lambda d: set_field(d / "frf.csv", 4, 3, "nan"),
+     "frf.csv: line 4: real = 'nan' is not a finite number"),
     ("infinite value", lambda d: set_field(d / "frf.csv", 9, 4, "-inf"),
      "frf.csv: line 9: imag = '-inf' is not a finite number"),
     ("unknown sensor", lambda d: edit(d / "frf.csv", "2,top,10,", "2,tip,10,"),
@@ -110,7 +110,8 @@ REJECTIONS = [
     ("unknown column", lambda d: (d / "frf.csv").write_text("test_id,sensor,frequency_hz,real,imag,phase\n"
                                                             "1,top,1,0,0,0\n"),
      "frf.csv: unknown column(s) phase"),
-    ("ragged row", lambda d: edit(d / "frf.csv", "imag\n", "imag\n1,top,1,0,0,0\n"), "frf.csv: cannot be read as a table"),
+    ("ragged row", lambda d: edit(d / "frf.csv", "imag\n", "imag\n1,top,1,0,0,0\n"),
+     "frf.csv: cannot be read as a table"),
     ("missing column", lambda d: (d / "frf.csv").write_text("test_id,sensor,frequency_hz,real\n1,top,1,0\n"),
      "frf.csv: missing column(s) imag"),
     ("FRFs without a design", lambda d: (d / "design.csv").unlink(), "design.csv: required file is missing"),
@@ -183,11 +184,11 @@ def test_random_valid_campaigns_round_trip_unchanged(tmp_path_factory, levels, t
 
 
 def test_measured_modes_from_modes_moments_or_frfs(tmp_path):
-    from workbench.workflow.measured import measured_modes
+    from conftest import REPO
+
     from workbench.model.frame_file import read_frame
     from workbench.rig.simulate import RigSettings, simulate_campaign
-
-    from conftest import REPO
+    from workbench.workflow.measured import measured_modes
 
     table3 = measured_modes(load_campaign(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), None, "identify from")
     assert not table3.has_tests and table3.modes.tolist() == list(range(1, 10))

@@ -1,7 +1,8 @@
 """Importers of the real data sets (workbench.io.real_data) and their frame files.
 
 The data are not in the repository (their licences forbid redistribution): the tests that read
-them fail when ``../shared/data/real`` is absent (skip with WORKBENCH_ALLOW_NO_SHARED=1). The reference numbers below were measured on
+them fail when ``../shared/data/real`` is absent (skip with WORKBENCH_ALLOW_NO_SHARED=1). The
+reference numbers below were measured on
 those files (FRF peak lines, 0.0625 Hz resolution for UNESP-BERT, 0.05 Hz for the Brake-Reuss
 beam) when the importers were written; the model numbers come from ``frames/*.toml``.
 """
@@ -10,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import REPO, SHARED
 from scipy.stats import spearmanr
 
-from conftest import REPO, SHARED
-from workbench.model.assembly import assemble
 from workbench.io.campaign import load_campaign, write_campaign
 from workbench.io.real_data import import_brake_reuss, import_unesp_bert
+from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
 

@@ -1,6 +1,7 @@
 """Circle-fit extraction on the two real data sets (workbench.extraction.modes on workbench.io.real_data).
 
-The data are not in the repository: these tests fail when ``../shared/data/real`` is absent (skip with WORKBENCH_ALLOW_NO_SHARED=1). They
+The data are not in the repository: these tests fail when ``../shared/data/real`` is absent (skip
+with WORKBENCH_ALLOW_NO_SHARED=1). They
 check what the data's authors report and what a modal extraction must at least get right:
 
 - UNESP-BERT (random excitation, six shaker levels 0.05-0.30 V, accelerometers): mode 2 (about
@@ -19,12 +20,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import REPO, SHARED
 from scipy.stats import spearmanr
 
-from conftest import REPO, SHARED
+from workbench.extraction.modes import extract_tests, find_mode_bands
 from workbench.io.campaign import frf_set
 from workbench.io.real_data import import_brake_reuss, import_unesp_bert
-from workbench.extraction.modes import extract_tests, find_mode_bands
 
 REAL = SHARED / "data" / "real"
 UNESP = REAL / "unesp-bert-bolted-beam"

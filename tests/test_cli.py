@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from workbench.model.assembly import assemble
 from workbench.cli import main
 from workbench.io.outputs import write_frame
+from workbench.model.assembly import assemble
 from workbench.model.generate import multibay_frame
 from workbench.model.modal import model_modes
 
@@ -123,11 +123,11 @@ def test_extract_finds_the_modes_the_rig_put_in(tmp_path):
     """Rig campaign -> workbench extract -> modes.csv against the rig's truth."""
     import json
 
+    from conftest import REPO
+
     from workbench.io.campaign import Factor
     from workbench.model.frame_file import read_frame
     from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
-
-    from conftest import REPO
 
     frame = read_frame(REPO / "frames" / "one_bolt_vertical.toml")
     factor = Factor("bolt_A", "tightening", {"1": "hand-tight", "3": "6000 N"}, "A")
@@ -150,7 +150,8 @@ def test_extract_finds_the_modes_the_rig_put_in(tmp_path):
 def test_extract_refuses_a_campaign_without_frfs(tmp_path, capsys):
     from conftest import REPO
 
-    assert main(["extract", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--out", str(tmp_path / "x")]) == 2
+    table3 = REPO / "campaigns" / "paper_table3_one_bolt_vertical"
+    assert main(["extract", str(table3), "--out", str(tmp_path / "x")]) == 2
     assert "has no FRFs" in capsys.readouterr().err
 
 

@@ -6,12 +6,18 @@ from scipy.optimize import brentq
 
 try:  # works with ``python -m pytest`` or if tests/ becomes a package
     from tests.reference.dynamic_stiffness import (
-        _clamped_member_count, member_dynamic_stiffness, natural_frequencies_hz,
-        portal_frame_reference)
+        _clamped_member_count,
+        member_dynamic_stiffness,
+        natural_frequencies_hz,
+        portal_frame_reference,
+    )
 except ImportError:  # plain ``pytest``: rootdir/tests is on sys.path
     from reference.dynamic_stiffness import (
-        _clamped_member_count, member_dynamic_stiffness, natural_frequencies_hz,
-        portal_frame_reference)
+        _clamped_member_count,
+        member_dynamic_stiffness,
+        natural_frequencies_hz,
+        portal_frame_reference,
+    )
 
 RTOL = 1e-7
 E, RHO, B, H, L = 210e9, 7850.0, 0.05, 0.1, 1.0

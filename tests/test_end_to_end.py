@@ -12,8 +12,8 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import REPO
+
 from workbench.cli import main
 from workbench.io.campaign import Factor, write_campaign
 from workbench.model.frame_file import read_frame

@@ -5,12 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
+from conftest import shared_path
 
 from workbench.io.outputs import write_frame
 from workbench.model.frame import FrameFileError
 from workbench.model.frame_file import frame_to_toml, parse_frame, read_frame
-
-from conftest import shared_path
 
 VALID = '''
 name = "portal"

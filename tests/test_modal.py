@@ -5,14 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import shared_path
 
 from workbench.model.assembly import assemble, element_energies, strain_energy
 from workbench.model.frame_file import read_frame
 from workbench.model.generate import multibay_for_dofs, multibay_frame
 from workbench.model.modal import mac, model_modes, solve_modes
-
-from conftest import shared_path
-
 
 
 @pytest.fixture(scope="module")

@@ -8,12 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import REPO, shared_path
 
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
-
-from conftest import REPO, shared_path
 
 FRAMES = REPO / "frames"
 JOINTS = {

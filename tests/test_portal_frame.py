@@ -6,12 +6,11 @@ from __future__ import annotations
 import json
 
 import numpy as np
+from conftest import shared_path
 
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import parse_frame, read_frame
 from workbench.model.modal import model_modes
-
-from conftest import shared_path
 
 try:
     from tests.reference.dynamic_stiffness import natural_frequencies_hz, portal_frame_reference

@@ -7,16 +7,15 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import REPO
 
-from workbench.uq import prediction
 from workbench.model.assembly import assemble
-from workbench.model.joints import frame_with_joint_models, model_at_moduli
 from workbench.model.frame_file import read_frame
+from workbench.model.joints import frame_with_joint_models, model_at_moduli
 from workbench.model.modal import frame_frf, model_modes
+from workbench.uq import prediction
 from workbench.uq.prediction import compare_frequencies, frf_band
 from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference
-
-from conftest import REPO
 
 AXIS = np.arange(0.5, 1250.0, 0.5)  # Hz; 0 Hz left out, where the accelerance is 0
 

@@ -5,21 +5,33 @@ from __future__ import annotations
 
 import math
 
-
 import numpy as np
 import pytest
+from conftest import REPO
 from scipy.special import gammaln
 
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import parse_frame, read_frame
 from workbench.model.generate import multibay_frame
 from workbench.model.modal import model_modes
-from workbench.uq.smr import (adaptive, eigenvector_derivatives, pert2, propagate, sensitivities, smr1, smr2,
-                           sqrt_moments)
-from workbench.uq.stochastic import (JointModel, expectation_rule, gamma_gauss_rule, joint_model, monte_carlo,
-                                  quadrature_reference)
-
-from conftest import REPO
+from workbench.uq.smr import (
+    adaptive,
+    eigenvector_derivatives,
+    pert2,
+    propagate,
+    sensitivities,
+    smr1,
+    smr2,
+    sqrt_moments,
+)
+from workbench.uq.stochastic import (
+    JointModel,
+    expectation_rule,
+    gamma_gauss_rule,
+    joint_model,
+    monte_carlo,
+    quadrature_reference,
+)
 
 
 @pytest.fixture(scope="module")

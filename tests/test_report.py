@@ -13,16 +13,15 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pytest
+from conftest import REPO
 
-from workbench.io.campaign import Factor
 from workbench.cli import main
+from workbench.io.campaign import Factor
 from workbench.model.frame_file import read_frame
 from workbench.report.page import SECTION_TITLES, render_report
 from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 from workbench.workflow.measured import load_and_extract
 from workbench.workflow.study import JointSource, Run, predict_campaign
-
-from conftest import REPO
 
 SMALL = RigSettings(f_max_hz=500.0)  # modes 1-5 of the one-bolt frames, 2001 lines
 

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import REPO, SHARED
+
 from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign
-from workbench.model.frame_file import parse_frame
 from workbench.io.uff import DIRECTION_CODES, campaign_from_uff, export_frfs, import_frfs, uff_quantity
+from workbench.model.frame_file import parse_frame
 
 pyuff = pytest.importorskip("pyuff")
 

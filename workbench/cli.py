@@ -9,21 +9,27 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, NoReturn
+from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
+from workbench.identify.bayes import Posterior, bayes_identify
+from workbench.identify.data import check_moments
+from workbench.identify.moments import MomentFit, moment_matching
+from workbench.identify.record import identification_record
+from workbench.io.outputs import OutputExistsError, csv_text, json_text, write_outputs
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.modal import model_modes
 from workbench.progress import Progress
-from workbench.io.outputs import OutputExistsError, csv_text, json_text, write_outputs
+from workbench.uq.smr import propagate
+from workbench.uq.stochastic import joint_model
 
-if TYPE_CHECKING:  # annotations only: the estimators load when a command needs them
-    from workbench.identify.bayes import Posterior
-    from workbench.identify.moments import MomentFit
+# The campaign, workflow and report layers load pandas, matplotlib and arviz (seconds on a busy
+# machine): each command imports them when it runs, so that `modes`, `propagate` and --help need not.
 
 __all__ = ["main", "ProgressBars"]
 
@@ -71,9 +77,6 @@ def _modes(args: argparse.Namespace) -> str:
 
 
 def _propagate(args: argparse.Namespace) -> str:
-    from workbench.uq.smr import propagate
-    from workbench.uq.stochastic import joint_model
-
     model = assemble(read_frame(args.frame))
     joints = joint_model(model.frame)
     if not joints.random.any():
@@ -85,7 +88,8 @@ def _propagate(args: argparse.Namespace) -> str:
     table = csv_text(["mode", "mean_hz", "std_hz"],
                      ((k + 1, float(m), float(s)) for k, (m, s) in enumerate(zip(moments.mean_hz, moments.std_hz))))
     run = {"method": args.method, "wall_time_s": wall, "samples": args.samples if args.method == "mc" else 0,
-           "seed": args.seed, "frame": str(args.frame), "joints": {n: float(c) for n, c in zip(joints.names, joints.cov)},
+           "seed": args.seed, "frame": str(args.frame),
+           "joints": {n: float(c) for n, c in zip(joints.names, joints.cov)},
            "nominal_hz": moments.nominal_hz.tolist()}
     if moments.refined is not None:
         run["smr2_modes"] = [int(k) + 1 for k in moments.refined.nonzero()[0]]
@@ -126,9 +130,6 @@ def _extract(args: argparse.Namespace) -> str:
 
 
 def _identify(args: argparse.Namespace) -> str:
-    from workbench.identify.data import check_moments
-    from workbench.identify.moments import moment_matching
-    from workbench.identify.record import identification_record
     from workbench.io.campaign import load_campaign
     from workbench.workflow.measured import measured_modes
 
@@ -145,7 +146,6 @@ def _identify(args: argparse.Namespace) -> str:
     if args.method == "moments":
         fit = moment_matching(model, data, seed=args.seed)
     else:
-        from workbench.identify.bayes import bayes_identify
         from workbench.workflow.posterior import POSTERIOR_FILE, posterior_netcdf
 
         fit = posterior = bayes_identify(model, data, seed=args.seed, progress=_progress())
@@ -172,8 +172,6 @@ def _write_report(run, out: str, force: bool, start: float) -> str:
 
 
 def _report(args: argparse.Namespace) -> str:
-    from pathlib import Path
-
     from workbench.workflow.study import report_run
 
     start = time.perf_counter()

@@ -158,7 +158,7 @@ def _prepare(node_xy, members):
         dx, dy = xy[b] - xy[a]
         L = float(np.hypot(dx, dy))
         if L <= 0.0:
-            raise ValueError("zero-length member %d-%d" % (a, b))
+            raise ValueError(f"zero-length member {a}-{b}")
         props = (L, float(m["E"]), float(m["A"]), float(m["I"]), float(m["rho"]))
         dofs = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * b + 2])
         out.append((props, _rotation(dx / L, dy / L), dofs))
@@ -245,7 +245,7 @@ def natural_frequencies_hz(node_xy, members, fixed_dofs, count,
             break
         hi *= 2.0
         if hi > 1e12:
-            raise RuntimeError("fewer than %d frequencies below 1.6e11 Hz" % count)
+            raise RuntimeError(f"fewer than {count} frequencies below 1.6e11 Hz")
     tol = 2.0 * np.pi * tol_hz
     result = []
     for k in range(1, count + 1):
@@ -292,4 +292,4 @@ def portal_frame_reference(count=6):
 if __name__ == "__main__":
     ref = portal_frame_reference()
     for n, f in enumerate(ref["frequencies_hz"], 1):
-        print("mode %d: %.9f Hz" % (n, f))
+        print(f"mode {n}: {f:.9f} Hz")

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import scipy
 
+from workbench.cli import ProgressBars
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
-from workbench.cli import ProgressBars
 from workbench.uq.stochastic import joint_model, monte_carlo, quadrature_reference
 
 REPO = Path(__file__).resolve().parents[2]

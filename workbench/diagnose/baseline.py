@@ -1,7 +1,7 @@
 """The diagnosis's baseline: the nominal model's predicted campaign means and its pairing with the measured modes.
 
 The frame file's model with its joints at their mean, its frequencies multiplied by the ratio of
-the stochastic mean (adaptive SMR, eq. 12-13, with the file's joint CoVs) to the nominal frequency,
+the stochastic mean (adaptive SMR, eq. 5-7 and Figure 10, with the file's joint CoVs) to the nominal frequency,
 since a campaign's mean is E[f], not f(E[Y]). Measured modes are paired with model modes by
 frequency (an assignment on |log f_measured / f_model|), once, on the baseline.
 """

@@ -196,7 +196,8 @@ def _check_quantity(quantity: str) -> str:
 
 def to_mobility(frequency_hz: np.ndarray, frf: np.ndarray, quantity: str) -> np.ndarray:
     """Convert an FRF to mobility (m/s/N): ``i omega H`` from receptance, ``H / (i omega)`` from
-    accelerance. ``frf`` (..., n_freq) complex; accelerance at 0 Hz raises ValueError."""
+    accelerance. ``frf`` (..., n_freq) complex; accelerance at 0 Hz raises ValueError.
+    """
     _check_quantity(quantity)
     omega = 2.0 * np.pi * np.asarray(frequency_hz, float)
     if quantity == "receptance":
@@ -275,7 +276,8 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
     one-mode angle model. Returns (phi0, omega_r, zeta, sense): ``sense`` +1 for a clockwise sweep
     (exp(+i omega t)), -1 for data in the other convention, tried when the clockwise fit misses the
     angles by more than `SENSE_RETRY` rad RMS (the direction cannot be read off the data: a mode
-    resolved by one or two lines steps by nearly pi)."""
+    resolved by one or two lines steps by nearly pi).
+    """
     step = _wrap(np.diff(phi))
     mid = 0.5 * (omega[1:] + omega[:-1])
     best, best_sense, scale = None, 1.0, 1.0
@@ -322,14 +324,16 @@ def _pairs(omega, psi, omega_r, sense):
 
 def _trend_basis(omega: np.ndarray, omega_ref: float) -> np.ndarray:
     """Mobility residual shapes ``i w``, ``-i / w``, ``i w^3 / w_ref^2`` (receptance ``U``,
-    ``-L / w^2``, ``U_2 w^2``), shape (n, 3)."""
+    ``-L / w^2``, ``U_2 w^2``), shape (n, 3).
+    """
     return np.column_stack([1j * omega, -1j / omega, 1j * omega**3 / omega_ref**2])
 
 
 def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
     """Joint least squares on the complex points: circle (centre, radius), sweep (phi0, omega_r,
     zeta) and the variation of the residual terms across the band (``n_trend`` shapes of
-    `_trend_basis`, zero at the starting omega_r)."""
+    `_trend_basis`, zero at the starting omega_r).
+    """
     scale = radius if radius > 0.0 else max(float(np.abs(data).max()), np.finfo(float).tiny)
     basis = _trend_basis(omega, omega_r)[:, :n_trend]
     basis = basis - _trend_basis(np.array([omega_r]), omega_r)[:, :n_trend]
@@ -467,7 +471,8 @@ def noise_level(frfs) -> np.ndarray:
     """Noise RMS of each curve, (n_curves,), from second differences along frequency: for white
     circular noise of ``E|n|^2 = sigma^2``, ``|n_(i+1) - 2 n_i + n_(i-1)|`` is Rayleigh with median
     ``sigma sqrt(6 ln 2)``; the median ignores the few large second differences at sharp peaks.
-    On a noise-free curve it measures the curve's own smoothness instead."""
+    On a noise-free curve it measures the curve's own smoothness instead.
+    """
     h = np.atleast_2d(np.asarray(frfs, complex))
     second = np.abs(h[:, 2:] - 2.0 * h[:, 1:-1] + h[:, :-2])
     sigma = np.median(second, axis=1) / np.sqrt(6.0 * np.log(2.0))

@@ -13,8 +13,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import find_peaks
 
-from workbench.extraction.circlefit import (CLOSE_BANDWIDTHS, FLAGS, MIN_BAND_POINTS, WEIGHT_FLOOR, ModalFit, _check_frequency,
-                        _check_frfs, _check_quantity, circle_fit, noise_level)
+from workbench.extraction.circlefit import (
+    CLOSE_BANDWIDTHS,
+    FLAGS,
+    MIN_BAND_POINTS,
+    WEIGHT_FLOOR,
+    ModalFit,
+    _check_frequency,
+    _check_frfs,
+    _check_quantity,
+    circle_fit,
+    noise_level,
+)
 from workbench.model.modal import add_noise, modal_superposition
 
 __all__ = ["ModeEstimate", "find_mode_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]

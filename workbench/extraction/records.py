@@ -7,7 +7,7 @@ excitation amplitudes, and the report all of it. Nothing else holds "the modes o
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -90,6 +90,23 @@ class MeasuredModes:
                 raise ValueError(f"{where}std_hz: expected {n_modes} finite non-negative values beside one row "
                                  f"of means, got {s}")
             object.__setattr__(self, "published_std_hz", s)
+
+    def select(self, keep: np.ndarray) -> MeasuredModes:
+        """The record restricted to the modes (columns) where ``keep`` (n_modes,) is true."""
+        keep = np.asarray(keep, bool)
+        if keep.shape != (self.count,):
+            raise ValueError(f"keep: expected {self.count} booleans, got shape {keep.shape}")
+
+        def columns(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else a[:, keep]
+
+        return replace(self, frequency_hz=self.frequency_hz[:, keep], modes=self.modes[keep],
+                       damping_ratio=columns(self.damping_ratio),
+                       published_std_hz=None if self.published_std_hz is None else self.published_std_hz[keep],
+                       frequency_scatter_hz=columns(self.frequency_scatter_hz),
+                       damping_scatter=columns(self.damping_scatter),
+                       flags=tuple(tuple(f for f, k in zip(row, keep) if k) for row in self.flags),
+                       modal_constants=columns(self.modal_constants))
 
     @property
     def published(self) -> bool:

@@ -8,8 +8,7 @@ propagation methods can be timed at that scale.
 from __future__ import annotations
 
 from workbench.model.assembly import mesh_frame
-from workbench.model.frame import (FIXED, DofRef, Frame, Joint, Material, Member, PointMass, Section, Sensor,
-                    Support)
+from workbench.model.frame import FIXED, DofRef, Frame, Joint, Material, Member, PointMass, Section, Sensor, Support
 
 __all__ = ["multibay_frame", "multibay_for_dofs"]
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from workbench.diagnose.verdict import Diagnosis
 from workbench.report.page import CSS, html_figure, html_table
+from workbench.report.plots import plt
 from workbench.rig.effects import JOINT_DAMPING, NONE, UNEXPLAINED
 
 __all__ = ["diagnosis_html", "validation_text"]
@@ -21,8 +22,6 @@ __all__ = ["diagnosis_html", "validation_text"]
 
 def _figures(d: Diagnosis) -> list[str]:
     """The page's figures as embedded HTML: residuals, localisation, ranking."""
-    from workbench.report.plots import plt
-
     out = []
     modes = np.asarray(d.modes)
     fig, ax = plt.subplots(figsize=(9, 3.6))
@@ -64,7 +63,8 @@ def _figures(d: Diagnosis) -> list[str]:
     if ranked:
         fig, ax = plt.subplots(figsize=(9, 0.3 * len(ranked) + 1.2))
         labels = [f"{c.effect} @ {c.where}" if c.where else c.effect for c in ranked]
-        held = [c.heldout_freq_rms_rel_error if c.channel == "frequency" else c.heldout_damping_rms_error for c in ranked]
+        held = [np.nan if h is None else h for h in (c.heldout_freq_rms_rel_error if c.channel == "frequency"
+                                                     else c.heldout_damping_rms_error for c in ranked)]
         ax.barh(labels, held, color=["tab:green" if c.channel == "frequency" else "tab:orange" for c in ranked])
         ax.axvline(d.baseline.heldout_freq_rms_rel_error, color="tab:red", ls="--", label="nominal model (frequency)")
         ax.set_xscale("log")
@@ -91,7 +91,8 @@ def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: 
               if synthetic else '<p class="banner real">Real measured data.</p>')
     meaning = {NONE.name: "the nominal model already fits within measurement scatter",
                UNEXPLAINED: "a real gap remains that no effect of the vocabulary brings down to the scatter"}
-    verdict = (f"<b>{html.escape(v['effect'])}</b>" + (f" at <b>{html.escape(str(v['where']))}</b>" if v["where"] else "")
+    where = f" at <b>{html.escape(str(v['where']))}</b>" if v["where"] else ""
+    verdict = (f"<b>{html.escape(v['effect'])}</b>" + where
                + f": held-out error shrinks by {100 * v['shrinkage']:.0f} %" if v["effect"] not in meaning
                else f"<b>{v['effect']}</b>: {meaning[v['effect']]}")
     figures = "".join(_figures(diagnosis))
@@ -100,12 +101,15 @@ def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: 
                    [[m["mode"], f"{m['measured_hz']:.2f}", f"{m['model_hz']:.2f}", f"{100 * m['rel_error']:+.3f} %"]
                     for m in base["modes"]])
     loc = html_table(["region", "kind", "mechanism", "score"],
-                 [[r["region"], r["kind"], r["mechanism"], f"{r['score']:.2f}"] for r in record["localization"][:12]], left=3)
+                 [[r["region"], r["kind"], r["mechanism"], f"{r['score']:.2f}"] for r in record["localization"][:12]],
+                 left=3)
     rank = html_table(["effect", "where", "parameters", "RMS rel. error", "held-out", "held-out chi2", "BIC"],
                   [[c["effect"], _fmt(c["where"]), ", ".join(f"{k}={_fmt(x)}" for k, x in c["parameters"].items()),
-                    _fmt(c["freq_rms_rel_error"]), _fmt(c["heldout_freq_rms_rel_error"]), _fmt(c["heldout_chi2"], ".4g"),
+                    _fmt(c["freq_rms_rel_error"]), _fmt(c["heldout_freq_rms_rel_error"]),
+                    _fmt(c["heldout_chi2"], ".4g"),
                     _fmt(c["bic"], ".4g")] for c in record["ranking"][:15]], left=3)
-    return f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Diagnosis: {html.escape(record['campaign'])}</title>
+    title = html.escape(record["campaign"])
+    return f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Diagnosis: {title}</title>
 <style>{CSS}</style></head><body><main>
 <h1>Sim-to-real gap diagnosis: {html.escape(record['campaign'])}</h1>{banner}
 <p>Source: {html.escape(source)}. Observations: {base['observations']['frequency']} frequency and
@@ -139,7 +143,8 @@ def validation_text(summary: dict) -> str:
             lines.append(f"{truth:22s}" + "".join(f"{row[v]:12d}" for v in verdicts))
     place = summary["place_accuracy"]
     lines += [f"top-1 effect right: {100 * summary['top1_accuracy']:.1f} %",
-              f"place right: {'-' if place is None else f'{100 * place:.1f} %'} of the {summary['place_checked']} right "
+              f"place right: {'-' if place is None else f'{100 * place:.1f} %'} of the "
+              f"{summary['place_checked']} right "
               "verdicts that have a place",
               f"no effect -> none: {summary['none_right']}; outside the vocabulary -> unexplained: "
               f"{summary['outside_right']}"]
@@ -149,5 +154,6 @@ def validation_text(summary: dict) -> str:
         if q:
             lines.append(f"{label}: median {100 * q['median']:.1f} % (min {100 * q['min']:.1f}, p10 "
                          f"{100 * q['p10']:.1f}, p90 {100 * q['p90']:.1f}, max {100 * q['max']:.1f})")
-    lines.append(f"mean diagnosis time per case {summary['mean_wall_time_s']:.1f} s; total {summary['wall_time_s']:.0f} s")
+    lines.append(f"mean diagnosis time per case {summary['mean_wall_time_s']:.1f} s; "
+                 f"total {summary['wall_time_s']:.0f} s")
     return "\n".join(lines)

@@ -20,8 +20,21 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from workbench import __version__
-from workbench.report.plots import (band_figure, band_zoom_figure, figure_png, forest_figure, frf_overlay_figure, moment_error_figure,
-                    nyquist_figure, plot_moment_errors, plt, posterior_figure, prediction_figure, save_figure)
+from workbench.identify.bayes import load_arviz
+from workbench.report.plots import (
+    band_figure,
+    band_zoom_figure,
+    figure_png,
+    forest_figure,
+    frf_overlay_figure,
+    moment_error_figure,
+    nyquist_figure,
+    plot_moment_errors,
+    plt,
+    posterior_figure,
+    prediction_figure,
+    save_figure,
+)
 from workbench.workflow.measured import campaign_label, mode_windows, nyquist_data
 from workbench.workflow.study import Prediction, Run, Study
 
@@ -84,7 +97,8 @@ def _ci(ci, scale: float = 1.0, fmt: str = ".3g") -> str:
 
 def html_table(header: Sequence[str], rows: Iterable[Sequence[object]], left: int = 1, wrap: bool = False) -> str:
     """An HTML table; the first ``left`` columns are text (left-aligned), cells escaped; ``wrap``
-    lets the last column's text wrap (long level descriptions) instead of scrolling."""
+    lets the last column's text wrap (long level descriptions) instead of scrolling.
+    """
     def cell(tag: str, i: int, n: int, value: object) -> str:
         cls = "l w" if wrap and i == n - 1 else "l" if i < left else ""
         return f'<{tag} class="{cls.strip()}">{_e(value)}</{tag}>' if cls else f"<{tag}>{_e(value)}</{tag}>"
@@ -218,8 +232,6 @@ def _posterior_section(study: Study) -> str:
     post = study.posterior
     if post is None:
         return _absent(f"the Bayesian estimator was {study.bayes_note}.")
-    from workbench.identify.bayes import load_arviz  # arviz imported with its FutureWarning silenced
-
     fig = posterior_figure(post, load_arviz())
     rows = []
     values = np.concatenate([post.youngs_modulus, post.cov, post.sigma])
@@ -227,8 +239,8 @@ def _posterior_section(study: Study) -> str:
     for name, v, ci, r, e, t in zip(post.parameter_names, values, cis, post.rhat, post.ess, post.autocorr_time):
         rows.append((name, f"{v:.4g}", f"[{ci[0]:.4g}, {ci[1]:.4g}]", f"{r:.3f}", f"{e:.0f}", f"{t:.1f}"))
     status = "converged" if post.converged else "NOT converged (R-hat >= 1.05 or fewer than 20 autocorrelation times)"
-    return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus and CoV "
-                    "(arviz).", "posterior plots") +
+    return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus "
+                    "and CoV (arviz).", "posterior plots") +
             html_table(["parameter", "median", "95 % interval", "R-hat", "bulk ESS", "autocorr. time (steps)"], rows) +
             f'<p class="note">{post.walkers} walkers x {post.steps} steps after {post.burn} burn-in, seed {post.seed}, '
             f"acceptance {post.acceptance_fraction:.2f}, forward table error {post.forward_error:.1e}: {_e(status)}. "
@@ -346,7 +358,8 @@ def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
 
 def _steps_table(run: Run) -> str:
     """Every step's wall time; circle fits of several campaigns run in parallel processes, so their
-    times overlap the run's "load and circle-fit" step instead of adding to it."""
+    times overlap the run's "load and circle-fit" step instead of adding to it.
+    """
     rows = [("(run)", s.name, s.detail, "-" if s.seed is None else s.seed, f"{s.wall_time_s:.2f}") for s in run.steps]
     items: list[Study | Prediction] = [*run.studies, *run.predictions]
     for item in items:

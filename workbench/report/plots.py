@@ -10,8 +10,8 @@ from __future__ import annotations
 import io
 import warnings
 from collections.abc import Mapping, Sequence
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -210,7 +210,7 @@ def forest_figure(rows: Sequence[Mapping[str, Any]]) -> Figure:
 
 
 def posterior_figure(posterior, az) -> object:
-    """arviz posterior densities of each group's E (GPa) and CoV, and their pair plot.
+    """Arviz posterior densities of each group's E (GPa) and CoV, and their pair plot.
 
     Parameters
     ----------
@@ -238,8 +238,8 @@ def posterior_figure(posterior, az) -> object:
 
 # ---------------------------------------------------------------------------- stochastic FRF
 
-def plot_frf_band(ax: Axes, band: FRFBand, sensor: int, measured: Mapping[object, FRFSet] | None = None, title: str = "",
-                  window: tuple[float, float] | None = None, log: bool = True):
+def plot_frf_band(ax: Axes, band: FRFBand, sensor: int, measured: Mapping[object, FRFSet] | None = None,
+                  title: str = "", window: tuple[float, float] | None = None, log: bool = True) -> Axes:
     """One sensor's stochastic FRF (Figures 12, 14, 16): envelope, 5-95 % band and mean of ``|H|``
     over the joint samples, over the measured ``|H|`` of every test (grey).
 
@@ -284,7 +284,8 @@ def band_figure(band: FRFBand, measured: Mapping[object, FRFSet] | None = None, 
     return fig
 
 
-def band_zoom_figure(band: FRFBand, measured: Mapping[object, FRFSet] | None, windows: Sequence[tuple[float, float, int]],
+def band_zoom_figure(band: FRFBand, measured: Mapping[object, FRFSet] | None,
+                     windows: Sequence[tuple[float, float, int]],
                      ncols: int = 5):
     """The band around each mode (`workbench.workflow.study.mode_windows`: window and sensor), one panel each."""
     fig, axes = _grid(len(windows), ncols, (2.6, 2.3))
@@ -333,7 +334,8 @@ def plot_frequency_spread(ax: Axes, predicted_samples_pct: np.ndarray, predicted
 def prediction_figure(band: FRFBand, measured: Mapping[object, FRFSet], sensor: int, predicted_samples_pct: np.ndarray,
                       predicted_std_pct: np.ndarray, measured_pct: np.ndarray):
     """Section 5 side by side: the predicted band at one sensor over the measured FRFs (left),
-    and the predicted against the measured frequency spread per mode (right)."""
+    and the predicted against the measured frequency spread per mode (right).
+    """
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.3), gridspec_kw={"width_ratios": [1.5, 1.0]}, layout="constrained")
     plot_frf_band(axes[0], band, sensor, measured, f"predicted band and measured FRFs, sensor {band.sensors[sensor]}")
     axes[0].legend(fontsize=7, loc="lower right")

@@ -137,7 +137,7 @@ class JointLaw:
         return self.eta0 * (1.0 + self.g * amplitude * np.exp(-np.asarray(preload_n, float) / self.p0_n))
 
     @classmethod
-    def calibrated(cls, mean_pa: float, cov: float, preloads_n: np.ndarray | None = None,
+    def calibrated(cls, mean_pa: float, cov: float, *, preloads_n: np.ndarray | None = None,
                    **shape: Any) -> JointLaw:
         """The law whose modulus over ``preloads_n`` (default: the 9-level sweep) at low amplitude
         has mean ``mean_pa`` and coefficient of variation ``cov`` (population, ddof = 0); ``shape``
@@ -200,7 +200,7 @@ class RigSettings:
     level_preloads_n: dict[str, float] = field(default_factory=lambda: dict(PAPER_LEVEL_PRELOADS_N))
     amplitude_ratios: dict[str, float] = field(default_factory=lambda: dict(AMPLITUDE_RATIOS))
     group_cov: dict[str, float] = field(default_factory=lambda: {g: v["cov"] for g, v in default_laws().items()})
-    law_shape: dict[str, float] = field(default_factory=dict)  # p0_n, s0, ps_n, eta0, g overrides
+    law_shape: dict[str, Any] = field(default_factory=dict)  # p0_n, s0, ps_n, eta0, g overrides
     locked_stress: LockedStress | None = None
 
     def frequency_axis(self) -> np.ndarray:
@@ -240,6 +240,8 @@ def _test_conditions(frame: Frame, factors: tuple[Factor, ...], levels: dict[str
     for f in factors:
         level = str(levels[f.name])
         if f.kind == "tightening":
+            if f.joint is None:
+                raise ValueError(f"factor {f.name}: a tightening factor must name its joint")
             if level in settings.level_preloads_n:
                 preload[f.joint] = float(settings.level_preloads_n[level])
             else:

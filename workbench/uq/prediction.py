@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.progress import Progress, report
 from workbench.model.modal import QUANTITIES, Modes, frame_frf, modal_superposition, model_modes, solve_modes
+from workbench.progress import Progress, report
 from workbench.uq.stochastic import FrequencyMoments, JointModel, track_modes
 
 __all__ = ["FRFBand", "frf_band", "FrequencyComparison", "compare_frequencies"]

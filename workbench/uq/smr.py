@@ -49,8 +49,8 @@ import scipy.sparse.linalg as spla
 from scipy.integrate import quad
 
 from workbench.model.assembly import joint_energies
-from workbench.progress import Progress
 from workbench.model.modal import Modes, model_modes
+from workbench.progress import Progress
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule, monte_carlo
 
 __all__ = [
@@ -333,7 +333,8 @@ def adaptive(model, joints: JointModel, count: int = 10, proximity_threshold: fl
              dispersion_threshold: float = DISPERSION_THRESHOLD, seed: int = 0,
              sens: Sensitivities | None = None) -> FrequencyMoments:
     """The strategy of Figure 10: SMR1 on all modes, then SMR2 where ``PF_k < proximity_threshold``
-    (close modes) or ``D_k > dispersion_threshold`` (a widely varying joint); see the module notes."""
+    (close modes) or ``D_k > dispersion_threshold`` (a widely varying joint); see the module notes.
+    """
     sens = sens or sensitivities(model, count)
     sens.require_nominal()
     first = smr1(model, joints, count, sens)

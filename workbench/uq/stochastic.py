@@ -20,8 +20,9 @@ import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
 from threadpoolctl import threadpool_limits
 
-from workbench.progress import Progress, report
+from workbench.model.assembly import Model
 from workbench.model.modal import Modes, model_modes, solve_modes
+from workbench.progress import Progress, report
 
 __all__ = ["JointModel", "joint_model", "FrequencyMoments", "MonteCarloResult", "monte_carlo", "track_modes",
            "gamma_gauss_rule", "expectation_rule", "tracked_frequencies", "quadrature_reference"]
@@ -136,7 +137,8 @@ class MonteCarloResult:
 
     def standard_errors(self) -> tuple[np.ndarray, np.ndarray]:
         """Sampling standard errors of the mean and of the std estimates, Hz (normal approximation
-        corrected by the sample kurtosis)."""
+        corrected by the sample kurtosis).
+        """
         n = self.frequency_hz.shape[0]
         x = self.frequency_hz - self.frequency_hz.mean(axis=0)
         var = (x**2).mean(axis=0)
@@ -208,7 +210,8 @@ def track_modes(nominal: Modes, candidates: Modes, mass) -> tuple[np.ndarray, np
     return index, cross[rows, cols][np.argsort(rows)]
 
 
-def tracked_frequencies(model, nominal: Modes, gammas: np.ndarray, extra_modes: int = 4) -> tuple[np.ndarray, np.ndarray]:
+def tracked_frequencies(model: Model, nominal: Modes, gammas: np.ndarray,
+                        extra_modes: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """Exact eigenfrequencies for each row of ``gammas``, modes tracked against ``nominal`` by MAC.
 
     Returns

@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,8 +24,8 @@ from workbench.extraction.circlefit import to_mobility
 from workbench.extraction.modes import ModeEstimate, extract_tests
 from workbench.extraction.records import MeasuredModes
 from workbench.io.campaign import Campaign, CampaignError, amplitude_of_tests, frf_set, load_campaign
-from workbench.progress import Progress, report
 from workbench.model.modal import modal_superposition
+from workbench.progress import Progress, report
 from workbench.uq.prediction import FRFBand
 
 __all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract", "load_campaigns",
@@ -80,20 +80,30 @@ class Extraction:
 
     def mean_damping(self) -> np.ndarray:
         """(n_modes,) mean measured damping ratio of each mode over the tests (the paper's FRF
-        synthesis uses the measured modal damping, 2.2.2); a mode never usable takes all its fits."""
+        synthesis uses the measured modal damping, 2.2.2); a mode never usable takes all its fits.
+        """
         usable, every = self.damping_ratio(True), self.damping_ratio(False)
         found = np.isfinite(usable).any(axis=0)
         return np.where(found, np.nanmean(np.where(found, usable, 0.0), axis=0), every.mean(axis=0))
 
     def measured_modes(self, source: str) -> MeasuredModes:
         """The identification's input: every test's usable frequencies and damping (NaN where the fit is
-        unusable, `UNUSABLE_FLAGS`), with the fits' scatter over the sensors (NaN there too) and flags."""
+        unusable, `UNUSABLE_FLAGS`), with the fits' scatter over the sensors (NaN there too) and flags.
+        """
         return MeasuredModes(self.frequency_hz(), modes=self.modes, damping_ratio=self.damping_ratio(),
                              tests=tuple(self.tests),
                              frequency_scatter_hz=self._table(lambda e: e.frequency_scatter, True),
                              damping_scatter=self._table(lambda e: e.damping_scatter, True),
                              flags=tuple(tuple(e.flags for e in self.estimates[t]) for t in self.tests),
-                             source=source)
+                             modal_constants=self._modal_constants(), source=source)
+
+    def _modal_constants(self) -> np.ndarray | None:
+        """(n_tests, n_modes, n_sensors) complex receptance modal constants of every fit, 1/kg, or None
+        when the tests were not measured at the same number of sensors.
+        """
+        values = [[[f.modal_constant for f in e.fits] for e in self.estimates[t]] for t in self.tests]
+        sizes = {len(fits) for per_test in values for fits in per_test}
+        return np.array(values, complex) if len(sizes) == 1 else None
 
 
 def extract_campaign(campaign, bands=None, count: int | None = None) -> Extraction:
@@ -132,7 +142,8 @@ def load_and_extract(path: str | Path) -> Loaded:
 def load_campaigns(paths: Sequence[str | Path], workers: int = 1,
                    progress: Progress | None = None) -> dict[str, Loaded]:
     """`load_and_extract` of several campaigns, ``workers`` processes at a time (the circle fits
-    of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given."""
+    of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given.
+    """
     names = list(dict.fromkeys(str(p) for p in paths))
     done: dict[str, Loaded] = {}
     if workers > 1 and len(names) > 1:
@@ -174,7 +185,8 @@ class NyquistData:
 def nyquist_data(extraction: Extraction, test=None) -> list[NyquistData]:
     """The circle fit of every mode on the best curve (largest combination weight) of one test
     (default the first): the measured mobility points of the band and the fitted
-    ``i w (A / (w_r^2 - w^2 + 2 i zeta w_r w) + U - L / w^2)`` (Ewins 4.3; `workbench.extraction.circlefit`)."""
+    ``i w (A / (w_r^2 - w^2 + 2 i zeta w_r w) + U - L / w^2)`` (Ewins 4.3; `workbench.extraction.circlefit`).
+    """
     test = extraction.tests[0] if test is None else test
     frfs = extraction.sets[test]
     out = []
@@ -237,29 +249,10 @@ def frequency_axis(extraction: Extraction) -> np.ndarray:
     return f[f > 0]
 
 
-def _mode_table(campaign: Campaign, count: int | None = None):
-    """Per-test modes (test_id, mode, frequency_hz, damping_ratio): ``modes.csv``, else extracted.
-
-    Extraction is by circle fit of every test's FRFs, bands shared across tests; modes whose fit
-    is flagged ``weak`` or ``poor_circle`` are left out of that test. None without modes or FRFs.
-    """
-    source = str(campaign.path or campaign.name)
-    if campaign.modes is None and campaign.frf is not None:
-        extraction = extract_campaign(campaign, count=count)
-        f, d = extraction.frequency_hz(), extraction.damping_ratio()  # NaN where weak or poor_circle
-        rows = [(t, k + 1, f[i, k], d[i, k]) for i, t in enumerate(extraction.tests) for k in range(f.shape[1])
-                if np.isfinite(f[i, k])]
-        table = pd.DataFrame(rows, columns=["test_id", "mode", "frequency_hz", "damping_ratio"])
-        return table, source + " (modes by circle fit of its FRFs)"
-    if campaign.modes is not None:
-        return campaign.modes, source + "/modes.csv"
-    return None
-
-
-def _wide(campaign: Campaign, table, column: str, count: int | None):
+def _wide(campaign: Campaign, table: pd.DataFrame, column: str, count: int | None) -> pd.DataFrame:
     wide = table.pivot(index="test_id", columns="mode", values=column).sort_index(axis=1)
     if count is not None:
-        wide = wide.loc[:, wide.columns <= count]
+        wide = wide[[mode for mode in wide.columns if int(mode) <= count]]
     return wide.reindex(campaign.test_ids)
 
 
@@ -277,17 +270,22 @@ def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = 
         The campaign holds no modes, FRFs or moments.
     """
     source = str(campaign.path or campaign.name)
-    found = _mode_table(campaign, count)
-    if found is None and campaign.moments is not None:
+    if campaign.modes is None and campaign.frf is not None:
+        # every test's circle fits (bands shared across tests; weak or poor circles left out), less
+        # the modes found usable in no test
+        fitted = extract_campaign(campaign, count=count).measured_modes(source + " (modes by circle fit of its FRFs)")
+        fitted = fitted.select(np.isfinite(fitted.frequency_hz).any(axis=0))
+        return replace(fitted, amplitude=amplitude_of_tests(campaign))
+    if campaign.modes is None and campaign.moments is not None:
         m = campaign.moments.sort_values("mode")
         if count is not None:
             m = m[m["mode"] <= count]
         return MeasuredModes(m["mean_hz"].to_numpy()[None, :], modes=m["mode"].to_numpy(),
                              published_std_hz=m["std_hz"].to_numpy(), tests_count=len(campaign.test_ids) or 9,
                              source=source + "/moments.csv")
-    if found is None:
+    if campaign.modes is None:
         raise CampaignError(f"{source}: holds no modes, FRFs or moments to {purpose}")
-    table, source = found
+    table, source = campaign.modes, source + "/modes.csv"
     wide = _wide(campaign, table, "frequency_hz", count)
     damping = _wide(campaign, table, "damping_ratio", count).to_numpy(float) if "damping_ratio" in table else None
     return MeasuredModes(wide.to_numpy(float), modes=wide.columns.to_numpy(), damping_ratio=damping,

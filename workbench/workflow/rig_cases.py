@@ -80,6 +80,8 @@ class _Draw:
 
 def _support_compliance(d: _Draw) -> Effect:
     support = d.frame.supports[int(d.rng.integers(len(d.frame.supports)))]
+    if support.rz is None:
+        raise ValueError(f"{d.frame.source}: support at {support.point!r} has no rotational stiffness to soften")
     return SUPPORT_COMPLIANCE.effect(support.point, rz=support.rz * d.log_uniform(0.05, 0.5))
 
 
@@ -98,6 +100,8 @@ def _shear_deformation(d: _Draw) -> Effect:
 
 def _stinger_stiffness(d: _Draw) -> Effect:
     excitation = d.frame.excitation
+    if excitation is None:
+        raise ValueError(f"{d.frame.source}: the frame has no excitation point to put a stinger on")
     return STINGER_STIFFNESS.effect(excitation.point, stiffness=d.log_uniform(5e3, 5e4), dof=excitation.dof)
 
 

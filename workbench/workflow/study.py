@@ -29,18 +29,33 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.identify.bayes import Posterior
+from workbench.extraction.records import MeasuredModes
+from workbench.identify.bayes import Posterior, bayes_identify
+from workbench.identify.moments import MomentFit, moment_matching
 from workbench.io.campaign import Campaign
 from workbench.model.assembly import assemble
 from workbench.model.frame import Frame
-from workbench.extraction.records import MeasuredModes
-from workbench.identify.moments import MomentFit, moment_matching
 from workbench.model.joints import frame_with_joint_models
-from workbench.workflow.measured import (Extraction, Loaded, campaign_label, extract_campaign, frequency_axis, load_campaigns,
-                                        measured_modes)
 from workbench.progress import Progress
-from workbench.uq.prediction import FRFBand, FrequencyComparison, compare_frequencies, frf_band
-from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, MonteCarloResult, joint_model, monte_carlo, quadrature_reference
+from workbench.uq.prediction import FrequencyComparison, FRFBand, compare_frequencies, frf_band
+from workbench.uq.smr import propagate
+from workbench.uq.stochastic import (
+    TENSOR_LIMIT,
+    FrequencyMoments,
+    MonteCarloResult,
+    joint_model,
+    monte_carlo,
+    quadrature_reference,
+)
+from workbench.workflow.measured import (
+    Extraction,
+    Loaded,
+    campaign_label,
+    extract_campaign,
+    frequency_axis,
+    load_campaigns,
+    measured_modes,
+)
 
 __all__ = ["ACCURACY_METHODS", "Step", "Accuracy", "JointSource", "Study", "study_campaign", "joint_sources",
            "Prediction", "predict_campaign", "Run", "identify_sources", "report_run", "demo_run", "DEMO_STUDIES",
@@ -110,7 +125,8 @@ class Accuracy:
 
     def errors_percent(self) -> tuple[dict, dict]:
         """``(mean, std)`` relative errors against the exact reference (else the Monte Carlo), %,
-        method -> (n_modes,); the Monte Carlo itself is the entry ``"mc"`` when the exact reference exists."""
+        method -> (n_modes,); the Monte Carlo itself is the entry ``"mc"`` when the exact reference exists.
+        """
         ref = self.exact if self.exact is not None else self.reference.moments
         compared = dict(self.methods)
         if self.exact is not None:
@@ -247,8 +263,6 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
 
     posterior, bayes_note = None, _bayes_refusal(campaign, data, bayes)
     if not bayes_note:
-        from workbench.identify.bayes import bayes_identify
-
         start = time.perf_counter()
         burn = min(500, bayes_steps // 4) if bayes_burn is None else bayes_burn
         posterior = bayes_identify(model, data, seed=seed, steps=bayes_steps, burn=burn, progress=progress)
@@ -288,8 +302,6 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
 
 
 def _propagate(model, joints, method: str, count: int, seed: int) -> FrequencyMoments:
-    from workbench.uq.smr import propagate
-
     return propagate(model, joints, method, count, seed=seed)
 
 
@@ -410,7 +422,8 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
                samples: int = 1000, bayes: bool = True, bayes_steps: int = 3000, workers: int = 1,
                progress: Progress | None = None, notify: Notify = None) -> Run:
     """`workbench report`: the study of one campaign and, with ``joints_from``, its section 5
-    prediction from the joint models identified (moment matching) on those one-bolt campaigns."""
+    prediction from the joint models identified (moment matching) on those one-bolt campaigns.
+    """
     start = time.perf_counter()
     paths = [str(campaign_path), *(str(p) for p in joints_from)]
     loaded = load_campaigns(paths, workers, progress)
