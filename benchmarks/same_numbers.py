@@ -4,14 +4,16 @@
     python benchmarks/same_numbers.py --save DIR                # only run the working tree, keep its outputs
     python benchmarks/same_numbers.py --against DIR             # compare the working tree with saved outputs
     python benchmarks/same_numbers.py --quick ...               # without the demo and the bayes run
+    python benchmarks/same_numbers.py --only demo ...           # only the outputs named
 
 Each version runs as ``python -m workbench.cli`` from its own checkout (a temporary ``git worktree`` for
 ``--ref``), so the two share no code. What is compared:
 
 - CSV files cell for cell as text (floats are written with ``repr``: full precision), less wall-time columns;
 - JSON files key by key, after dropping wall times (``wall_time_s`` and the like);
-- HTML pages after replacing each embedded PNG by its SHA-256 (the figures' pixels) and dropping the
-  "what was done" section, whose content is wall times, and "Wall time N s" sentences.
+- HTML pages by their figures (the SHA-256 of each embedded PNG: the pixels) and every number of their
+  text in order, less the "what was done" section and "Wall time N s" sentences (wall times); the
+  wording may change, the numbers may not.
 
 The renovation of issue 13 must leave every one of these identical. Prints one line per output and
 exits 1 on any difference.
@@ -60,6 +62,7 @@ SLOW_RUNS: list[tuple[str, list[str]]] = [
 ]
 WALL = re.compile(r"(wall|seconds|time_s|elapsed)", re.I)
 PNG = re.compile(r"data:image/png;base64,([A-Za-z0-9+/=]+)")
+NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
 WALL_TEXT = re.compile(r"[Ww]all time [0-9.]+ s")
 DONE = re.compile(r'<h2 id="done">.*?(?=<h2|</body>)', re.S)
 
@@ -86,9 +89,11 @@ def _strip_times(value: object) -> object:
     return value
 
 
-def _html_digest(text: str) -> str:
-    text = PNG.sub(lambda m: "png:" + hashlib.sha256(m.group(1).encode()).hexdigest()[:16], text)
-    return WALL_TEXT.sub("wall time", DONE.sub("", text))
+def _html_digest(text: str) -> list[str]:
+    """The page's figures (a hash of each PNG) and every number of its text, in order; wording is free."""
+    figures = ["png:" + hashlib.sha256(m.group(1).encode()).hexdigest()[:16] for m in PNG.finditer(text)]
+    text = WALL_TEXT.sub("wall time", DONE.sub("", PNG.sub("", text)))
+    return figures + NUMBER.findall(re.sub(r"<[^>]*>", " ", text))
 
 
 def _csv_without_times(path: Path) -> list[list[str]]:
@@ -145,8 +150,11 @@ def main() -> int:
     parser.add_argument("--save", type=Path, help="run the working tree only and keep its outputs here")
     parser.add_argument("--against", type=Path, help="compare the working tree with outputs saved by --save")
     parser.add_argument("--quick", action="store_true", help="leave out the bayes run and the demo")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="run only these outputs (names as printed)")
     args = parser.parse_args()
     runs = RUNS if args.quick else RUNS + SLOW_RUNS
+    if args.only:
+        runs = [r for r in RUNS + SLOW_RUNS if r[0] in args.only]
     with tempfile.TemporaryDirectory() as tmp:
         after = args.save or Path(tmp) / "after"
         after.mkdir(parents=True, exist_ok=True)

@@ -17,7 +17,7 @@ __all__ = ["MeasuredModes"]
 def _table(value: np.ndarray | None, shape: tuple[int, ...], name: str) -> np.ndarray | None:
     if value is None:
         return None
-    array = np.atleast_2d(np.asarray(value))
+    array = np.ascontiguousarray(np.atleast_2d(np.asarray(value)))
     if array.shape[:2] != shape:
         raise ValueError(f"{name}: shape {array.shape} differs from frequency_hz {shape}")
     return array
@@ -61,7 +61,9 @@ class MeasuredModes:
 
     def __post_init__(self) -> None:
         where = f"{self.source}: " if self.source else ""
-        f = np.atleast_2d(np.asarray(self.frequency_hz, float))
+        # row-major arrays whatever their source (pivot tables, column selections): reductions over
+        # the tests then round alike to the last bit, so the same data give the same moments
+        f = np.ascontiguousarray(np.atleast_2d(np.asarray(self.frequency_hz, float)))
         object.__setattr__(self, "frequency_hz", f)
         if f.size == 0 or np.all(np.isnan(f)):
             raise ValueError(f"{where}frequency_hz: no measured frequency")
