@@ -70,15 +70,21 @@ def test_global_joint_shift_scales_every_joint():
                                                       0.5 * frame.joints[1].youngs_modulus]
 
 
+# each case takes 20-30 s: one stays in the default suite, the others run in CI's slow step
+SLOW = pytest.mark.slow
 CASES = [
-    (Effect("support_compliance", "base_left", {"rz": 900.0}), "rz", 900.0, 0.02),
-    (Effect("joint_stiffness_shift", "A", {"factor": 0.6}), "factor", 0.6, 0.02),
-    (Effect("axial_prestress", "beam", {"axial_force": 300.0}), "axial_force", 300.0, 0.05),
-    (Effect("stinger_stiffness", "drive", {"stiffness": 2e4, "dof": "ux"}), "stiffness", 2e4, 0.05),
+    pytest.param(Effect("support_compliance", "base_left", {"rz": 900.0}), "rz", 900.0, 0.02,
+                 id="support_compliance"),
+    pytest.param(Effect("joint_stiffness_shift", "A", {"factor": 0.6}), "factor", 0.6, 0.02,
+                 id="joint_stiffness_shift", marks=SLOW),
+    pytest.param(Effect("axial_prestress", "beam", {"axial_force": 300.0}), "axial_force", 300.0, 0.05,
+                 id="axial_prestress", marks=SLOW),
+    pytest.param(Effect("stinger_stiffness", "drive", {"stiffness": 2e4, "dof": "ux"}), "stiffness", 2e4, 0.05,
+                 id="stinger_stiffness", marks=SLOW),
 ]
 
 
-@pytest.mark.parametrize("effect,name,value,tolerance", CASES, ids=[c[0].type for c in CASES])
+@pytest.mark.parametrize("effect,name,value,tolerance", CASES)
 def test_injected_effect_is_named_placed_and_sized(effect, name, value, tolerance):
     frame = _deterministic(ONE_BOLT)
     result = diagnose(frame, _data(frame, effect))
@@ -91,6 +97,7 @@ def test_injected_effect_is_named_placed_and_sized(effect, name, value, toleranc
     assert result.shrinkage == pytest.approx(1 - best.heldout_freq_rms_rel_error / baseline_error)
 
 
+@SLOW
 def test_added_mass_on_a_member_is_found_between_mesh_nodes():
     frame = _deterministic(ONE_BOLT)
     effect = Effect("added_mass", "right_column", {"mass": 0.05, "position": 0.437})
@@ -102,6 +109,7 @@ def test_added_mass_on_a_member_is_found_between_mesh_nodes():
     assert best.parameters["mass"] == pytest.approx(0.05, rel=0.05)
 
 
+@SLOW
 def test_amplitude_softening_needs_two_amplitudes_and_is_told_from_a_shift():
     frame = _deterministic(ONE_BOLT)
     amplitude = np.array([1.0, 5.0] * 4)
@@ -113,6 +121,7 @@ def test_amplitude_softening_needs_two_amplitudes_and_is_told_from_a_shift():
     assert shift.heldout_chi2 > 10 * result.ranking[0].heldout_chi2
 
 
+@SLOW
 def test_no_effect_is_none_and_an_outside_effect_is_unexplained():
     frame = _deterministic(ONE_BOLT)
     assert diagnose(frame, _data(frame, Effect(), seed=5)).verdict == "none"
@@ -124,6 +133,7 @@ def test_no_effect_is_none_and_an_outside_effect_is_unexplained():
     assert "beam" in [r.region for r in result.localisation[:3]]
 
 
+@SLOW
 def test_joint_damping_is_found_on_damping_alone():
     frame = _deterministic(TWO_BOLT)
     model = assemble(frame)
@@ -169,6 +179,7 @@ def test_bad_data_is_refused_in_one_line():
         MeasuredModes(np.ones((3, 4)), damping_ratio=np.ones((2, 4)))
 
 
+@SLOW
 def test_diagnose_command_writes_json_and_html(tmp_path, capsys):
     out = tmp_path / "diag"
     assert main(["diagnose", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--out", str(out)]) == 0
@@ -184,6 +195,7 @@ def test_diagnose_command_writes_json_and_html(tmp_path, capsys):
     assert not (tmp_path / "o2").exists() or not any((tmp_path / "o2").iterdir())
 
 
+@SLOW
 def test_one_blind_rig_case_from_frfs_through_the_circle_fit():
     from workbench.workflow.rig_cases import run_case
 
