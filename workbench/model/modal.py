@@ -16,7 +16,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
-from workbench.model.assembly import strain_energy
+from workbench.model.assembly import Model, strain_energy
 
 __all__ = [
     "DENSE_LIMIT",
@@ -180,7 +180,7 @@ def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndar
     return Modes(values, _normalise(vectors, mass))
 
 
-def model_modes(model, count: int = 10, gamma: np.ndarray | None = None, method: str = "auto") -> Modes:
+def model_modes(model: Model, count: int = 10, gamma: np.ndarray | None = None, method: str = "auto") -> Modes:
     """First ``count`` modes of an assembled `Model` with joint moduli ``gamma`` (default: nominal).
 
     The eigenvalues are the Rayleigh quotients of the eigenvectors with the strain energy summed
@@ -274,7 +274,7 @@ def add_noise(values: np.ndarray, snr_db: float | None, rng: np.random.Generator
     return values + sigma * noise / np.sqrt(2.0)
 
 
-def frame_frf(model, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",
+def frame_frf(model: Model, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",
               damping_ratios: np.ndarray | None = None) -> FRFSet:
     """FRFs at the frame's sensors for its excitation (CONTRACTS.md section 1).
 

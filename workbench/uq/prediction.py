@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.model.assembly import Model
 from workbench.model.modal import QUANTITIES, Modes, frame_frf, modal_superposition, model_modes, solve_modes
 from workbench.progress import Progress, report
 from workbench.uq.stochastic import FrequencyMoments, JointModel, track_modes
@@ -85,7 +86,7 @@ def _damping(damping_ratio, count: int) -> np.ndarray:
     return zeta[np.minimum(np.arange(count), zeta.size - 1)]
 
 
-def _summed_modes(model, top_hz: float, modes: int | None):
+def _summed_modes(model: Model, top_hz: float, modes: int | None):
     """Nominal modes: ``modes`` of them, or those up to ``top_hz`` and `MODES_ABOVE` more."""
     limit = model.size - 2 - TRACKING_MODES
     if modes is not None:
@@ -101,7 +102,7 @@ def _summed_modes(model, top_hz: float, modes: int | None):
         count = min(2 * count, limit)
 
 
-def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio: np.ndarray, *,
+def frf_band(model: Model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio: np.ndarray, *,
              quantity: str = "accelerance", samples: int = 500, seed: int = 0, modes: int | None = None,
              progress: Progress | None = None) -> FRFBand:
     """Mean, envelope and 5-95 % band of the FRF magnitude under random joints (Figures 12, 14, 16).
@@ -150,6 +151,8 @@ def frf_band(model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio:
     zeta = _damping(damping_ratio, count)
     reference = frame_frf(model, nominal, f, quantity, zeta)
     frame = model.frame
+    if frame.excitation is None:  # frame_frf above refuses it first; said again for the reader and mypy
+        raise ValueError(f"{frame.source}: the frame has no excitation: no FRF to band")
     responses = np.array([model.dof(s.point, s.dof) for s in frame.sensors])
     excitation = model.dof(frame.excitation.point, frame.excitation.dof)
 

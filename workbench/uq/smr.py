@@ -48,7 +48,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.integrate import quad
 
-from workbench.model.assembly import joint_energies
+from workbench.model.assembly import Model, joint_energies
 from workbench.model.modal import Modes, model_modes
 from workbench.progress import Progress
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule, monte_carlo
@@ -102,7 +102,7 @@ class Sensitivities:
                              "adaptive and Pert2 move the model there with workbench.model.joints.model_at_moduli")
 
 
-def sensitivities(model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
+def sensitivities(model: Model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
     """Nominal modes of ``model`` (joints at ``gamma``, default their means) and ``lambda_kj`` (eq. 5).
 
     With ``gamma``, ``lambda_kj`` is relative to that point: right for SMR1, which needs only the
@@ -194,12 +194,12 @@ def dispersion(sens: Sensitivities, joints: JointModel) -> np.ndarray:
     return np.where(total > 0, d, 0.0)
 
 
-def _check(model, joints: JointModel) -> None:
+def _check(model: Model, joints: JointModel) -> None:
     if joints.names != model.joint_names:
         raise ValueError(f"joint model {joints.names} does not match the model's joints {model.joint_names}")
 
 
-def smr1(model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
+def smr1(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
     """SMR1 (eq. 5): frequency moments with the nominal eigenvectors, exact for that model.
 
     Parameters
@@ -236,7 +236,8 @@ def smr1(model, joints: JointModel, count: int = 10, sens: Sensitivities | None 
                             dispersion=dispersion(sens, joints)[:count])
 
 
-def eigenvector_derivatives(model, sens: Sensitivities, modes: np.ndarray, joint_index: np.ndarray) -> np.ndarray:
+def eigenvector_derivatives(model: Model, sens: Sensitivities, modes: np.ndarray,
+                            joint_index: np.ndarray) -> np.ndarray:
     """Nelson's eigenvector derivatives ``dphi_k / dgamma_j`` at the nominal point.
 
     For each mode, ``(K - lambda_k M) v = -(K_j - lambda_kj M) phi_k`` is solved with ``v_p = 0`` at
@@ -271,7 +272,7 @@ def eigenvector_derivatives(model, sens: Sensitivities, modes: np.ndarray, joint
     return out
 
 
-def smr2_frequencies(model, sens: Sensitivities, modes: np.ndarray, gammas: np.ndarray,
+def smr2_frequencies(model: Model, sens: Sensitivities, modes: np.ndarray, gammas: np.ndarray,
                      varying: np.ndarray | None = None, rayleigh: bool = True) -> np.ndarray:
     """SMR2 eigenfrequencies (eq. 6-7) at given joint scales: (n_points, len(modes)) Hz.
 
@@ -300,7 +301,7 @@ def smr2_frequencies(model, sens: Sensitivities, modes: np.ndarray, gammas: np.n
     return out
 
 
-def _smr2_modes(model, joints: JointModel, sens: Sensitivities, modes: np.ndarray, rayleigh: bool,
+def _smr2_modes(model: Model, joints: JointModel, sens: Sensitivities, modes: np.ndarray, rayleigh: bool,
                 seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Frequency mean and std of the given modes by SMR2 (eq. 6-7) over the joint law."""
     r = np.flatnonzero(joints.random)
@@ -313,7 +314,7 @@ def _smr2_modes(model, joints: JointModel, sens: Sensitivities, modes: np.ndarra
     return mean, np.sqrt(weights @ (f - mean) ** 2)
 
 
-def smr2(model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed: int = 0,
+def smr2(model: Model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed: int = 0,
          sens: Sensitivities | None = None) -> FrequencyMoments:
     """SMR2 (eq. 6-7) on every mode: first-order eigenvectors, eigenvalue as a Rayleigh quotient.
 
@@ -329,7 +330,7 @@ def smr2(model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed
                             dispersion=dispersion(sens, joints)[:count], refined=np.ones(count, bool))
 
 
-def adaptive(model, joints: JointModel, count: int = 10, proximity_threshold: float = PROXIMITY_THRESHOLD,
+def adaptive(model: Model, joints: JointModel, count: int = 10, proximity_threshold: float = PROXIMITY_THRESHOLD,
              dispersion_threshold: float = DISPERSION_THRESHOLD, seed: int = 0,
              sens: Sensitivities | None = None) -> FrequencyMoments:
     """The strategy of Figure 10: SMR1 on all modes, then SMR2 where ``PF_k < proximity_threshold``
@@ -348,7 +349,7 @@ def adaptive(model, joints: JointModel, count: int = 10, proximity_threshold: fl
                             dispersion=first.dispersion, refined=refined)
 
 
-def pert2(model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
+def pert2(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
     """Second-order perturbation: mean to second order, variance to first order, of the frequencies.
 
     With ``f = sqrt(lambda) / 2 pi``, ``df/dgamma_j = lambda_kj / (4 pi sqrt(lambda))`` and
@@ -382,7 +383,7 @@ def pert2(model, joints: JointModel, count: int = 10, sens: Sensitivities | None
 METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
 
 
-def propagate(model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
+def propagate(model: Model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
               workers: int = 1, progress: Progress | None = None) -> FrequencyMoments:
     """Frequency moments by ``method`` (one of `METHODS`); ``samples`` and ``workers`` are for ``mc``."""
     if method == "smr1":

@@ -237,7 +237,8 @@ def _worker_chunk(args) -> tuple[np.ndarray, np.ndarray]:
         return tracked_frequencies(*args)
 
 
-def quadrature_reference(model, joints: JointModel, count: int = 10, points: int = GAUSS_POINTS) -> FrequencyMoments:
+def quadrature_reference(model: Model, joints: JointModel, count: int = 10,
+                         points: int = GAUSS_POINTS) -> FrequencyMoments:
     """Exact frequency moments by a tensor Gauss rule over exact eigen-solves (no sampling noise).
 
     ``points ** n_random`` full solves, modes tracked by MAC: a noise-free reference for up to
@@ -263,7 +264,7 @@ def quadrature_reference(model, joints: JointModel, count: int = 10, points: int
     return FrequencyMoments(mean, std, f"quadrature-{points}", nominal.frequency_hz)
 
 
-def monte_carlo(model, joints: JointModel, count: int = 10, samples: int = 10_000, seed: int = 0,
+def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int = 10_000, seed: int = 0,
                 workers: int = 1, progress: Progress | None = None, extra_modes: int = 4,
                 chunk: int = 100) -> MonteCarloResult:
     """Monte Carlo moments of the first ``count`` eigenfrequencies: one exact eigen-solve per sample.

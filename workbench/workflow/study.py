@@ -33,7 +33,7 @@ from workbench.extraction.records import MeasuredModes
 from workbench.identify.bayes import Posterior, bayes_identify
 from workbench.identify.moments import MomentFit, moment_matching
 from workbench.io.campaign import Campaign
-from workbench.model.assembly import assemble
+from workbench.model.assembly import Model, assemble
 from workbench.model.frame import Frame
 from workbench.model.joints import frame_with_joint_models
 from workbench.progress import Progress
@@ -301,7 +301,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
                  extraction_note, bayes_note, accuracy_note, band_note)
 
 
-def _propagate(model, joints, method: str, count: int, seed: int) -> FrequencyMoments:
+def _propagate(model: Model, joints, method: str, count: int, seed: int) -> FrequencyMoments:
     return propagate(model, joints, method, count, seed=seed)
 
 
