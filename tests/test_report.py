@@ -194,6 +194,7 @@ def test_section5_measured_columns_are_the_nan_aware_statistics_of_the_circle_fi
     assert used[2] == f"{f.shape[0] - 1}/{f.shape[0]}" and used[0] == f"{f.shape[0]}/{f.shape[0]}"
 
 
+@pytest.mark.slow  # 25-35 s: in CI's slow step (.ci/slow_tests)
 def test_report_with_joints_from_predicts_the_multi_bolt_frame(tmp_path):
     vertical = rig_campaign(tmp_path / "v", "one_bolt_vertical", {"A": "vertical"}, seed=21)
     horizontal = rig_campaign(tmp_path / "h", "one_bolt_horizontal", {"B": "horizontal"}, seed=22)
