@@ -55,3 +55,13 @@ def test_every_layer_imports_only_the_layers_below_it():
                 if target != layer and target in ALLOWED and target not in ALLOWED[layer]:
                     breaches.append(f"{_module(path)} imports {node.module}")
     assert breaches == []
+
+
+def test_the_house_plan_measures_clean():
+    """`../shared/tools/house.py` (sub-packages, circles, sizes, edge libraries, lint in CI) exits 0."""
+    from conftest import REPO, shared_path
+
+    done = subprocess.run([sys.executable, str(shared_path("tools", "house.py"))], cwd=REPO, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stdout[-2000:]
+    assert "0 module circles, 0 sub-package circles, 0 over 500 lines, 0 functions over 100 lines" in done.stdout
