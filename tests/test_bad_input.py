@@ -1,0 +1,378 @@
+"""The catalogue of bad inputs (issue 19): each is refused with exit 2 and one line naming the problem.
+
+Every case starts from valid inputs copied into a fresh folder (a frame file, a small campaign written
+by another program, a UFF export, a matrix model), breaks one thing as a careless user or a faulty
+exporter would, runs the command line, and checks: exit 2; one line on standard error holding the
+expected fragment (the file, field or option, and the problem); no input file changed and nothing
+written (the lock file of ``--out`` aside). The fragments were written from the contract's wording
+before the cases were run, then adjusted only where the message said the same thing in other words.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from conftest import REPO, cut_example_campaign, digest, dump_toml, error_lines, run_cli
+
+FRAME = REPO / "frames" / "one_bolt_vertical.toml"
+
+
+@dataclass(frozen=True)
+class Case:
+    """A bad input: ``build(work)`` writes it under ``work`` and returns the command line."""
+
+    name: str
+    fragment: str
+    build: Callable[[Path], list[str]]
+
+
+CASES: list[Case] = []
+
+
+def case(name: str, fragment: str):
+    def register(build: Callable[[Path], list[str]]) -> Callable[[Path], list[str]]:
+        CASES.append(Case(name, fragment, build))
+        return build
+    return register
+
+
+@pytest.fixture(scope="module")
+def pristine_campaign(tmp_path_factory) -> Path:
+    return cut_example_campaign(tmp_path_factory.mktemp("pristine") / "campaign")
+
+
+_PRISTINE: list[Path] = []
+
+
+# ------------------------------------------------------------------ helpers that break things
+
+def frame_with(work: Path, edit: Callable[[dict], None] | None = None, text: str | None = None) -> Path:
+    """A copy of the one-bolt frame under ``work``, its TOML data edited (or replaced by ``text``)."""
+    path = work / "frame.toml"
+    if text is not None:
+        path.write_text(text)
+        return path
+    data = tomllib.loads(FRAME.read_text())
+    if edit is not None:
+        edit(data)
+    path.write_text(dump_toml(data))
+    return path
+
+
+def modes(work: Path, frame: Path, *extra: str) -> list[str]:
+    return ["modes", str(frame), "--out", str(work / "out"), *extra]
+
+
+def campaign_copy(work: Path) -> Path:
+    target = work / "campaign"
+    shutil.copytree(_PRISTINE[0], target)
+    return target
+
+
+def edit_csv(path: Path, edit: Callable[[list[list[str]]], list[list[str]] | None]) -> None:
+    rows = [line.split(",") for line in path.read_text().splitlines()]
+    rows = edit(rows) or rows
+    path.write_text("".join(",".join(r) + "\n" for r in rows))
+
+
+def edit_toml(path: Path, edit: Callable[[dict], None]) -> None:
+    data = tomllib.loads(path.read_text())
+    edit(data)
+    path.write_text(dump_toml(data))
+
+
+def extract(work: Path, campaign: Path, *extra: str) -> list[str]:
+    return ["extract", str(campaign), "--out", str(work / "out"), *extra]
+
+
+# ------------------------------------------------------------------ frame files (CONTRACTS.md section 1)
+
+def _member(index: int, key: str, value) -> Callable[[dict], None]:
+    return lambda d: d["members"][index].__setitem__(key, value)
+
+
+FRAME_CASES = {
+    "frame: not TOML": (None, "name = [unclosed", "TOML"),
+    "frame: empty file": (None, "", "required key is missing"),
+    "frame: name missing": (lambda d: d.pop("name"), None, "name"),
+    "frame: unknown top-level key": (lambda d: d.__setitem__("colour", "red"), None, "colour"),
+    "frame: unknown beam theory": (lambda d: d.__setitem__("beam_theory", "kirchhoff"), None, "beam_theory"),
+    "frame: element length zero": (lambda d: d.__setitem__("element_length", 0.0), None, "element_length"),
+    "frame: element length negative": (lambda d: d.__setitem__("element_length", -0.01), None, "element_length"),
+    "frame: element length as text": (lambda d: d.__setitem__("element_length", "1 cm"), None, "element_length"),
+    "frame: density negative": (lambda d: d["materials"]["aluminium"].__setitem__("density", -2700.0), None,
+                                "density"),
+    "frame: Young's modulus NaN": (lambda d: d["materials"]["aluminium"].__setitem__("youngs_modulus",
+                                                                                    float("nan")), None,
+                                   "youngs_modulus"),
+    "frame: section area zero": (lambda d: d["sections"]["flat_bar"].__setitem__("area", 0.0), None, "area"),
+    "frame: point with three coordinates": (lambda d: d["points"].__setitem__("drive", [0.0, 0.1, 0.0]), None,
+                                            "points.drive"),
+    "frame: point coordinate infinite": (lambda d: d["points"].__setitem__("drive", [0.0, float("inf")]), None,
+                                         "points.drive"),
+    "frame: member to an unknown point": (_member(1, "end", "nowhere"), None, "nowhere"),
+    "frame: member of an unknown material": (_member(0, "material", "steel"), None, "steel"),
+    "frame: member of an unknown section": (_member(2, "section", "tube"), None, "tube"),
+    "frame: member of zero length": (_member(1, "end", "top_left"), None, "members[1]"),
+    "frame: duplicated member name": (_member(2, "name", "beam"), None, "beam"),
+    "frame: joint on an unknown member": (lambda d: d["joints"][0].__setitem__("member", "pillar"), None,
+                                          "pillar"),
+    "frame: joint span outside its member": (lambda d: d["joints"][0].__setitem__("span", [0.40, 0.60]), None,
+                                             "span"),
+    "frame: joint cov negative": (lambda d: d["joints"][0].__setitem__("cov", -0.1), None, "cov"),
+    "frame: support on an unknown point": (lambda d: d["supports"][0].__setitem__("point", "floor"), None,
+                                           "floor"),
+    "frame: support with an unknown dof": (lambda d: d["supports"][0].__setitem__("uz", "fixed"), None, "uz"),
+    "frame: spring stiffness negative": (lambda d: d["springs"][0].__setitem__("stiffness", -5.0), None,
+                                         "stiffness"),
+    "frame: mass negative": (lambda d: d["masses"][0].__setitem__("mass", -0.2), None, "mass"),
+    "frame: excitation on an unknown point": (lambda d: d["excitation"].__setitem__("point", "shaker"), None,
+                                              "shaker"),
+    "frame: sensor dof unknown": (lambda d: d["sensors"][0].__setitem__("dof", "uz"), None, "sensors[0].dof"),
+    "frame: duplicated sensor name": (lambda d: d["sensors"][1].__setitem__("name", "drive"), None, "drive"),
+    "frame: damping ratio negative": (lambda d: d["damping"].__setitem__("ratios", [-0.01]), None, "damping"),
+}
+
+for _name, (_edit, _text, _fragment) in FRAME_CASES.items():
+    case(_name, _fragment)(lambda work, e=_edit, t=_text: modes(work, frame_with(work, e, t)))
+
+
+@case("frame: the file does not exist", "missing.toml")
+def _(work):
+    return modes(work, work / "missing.toml")
+
+
+@case("frame: a directory instead of a file", "frame")
+def _(work):
+    (work / "frame").mkdir()
+    return modes(work, work / "frame")
+
+
+# ------------------------------------------------------------------ campaigns (CONTRACTS.md section 2)
+
+@case("campaign: directory does not exist", "no_such_campaign")
+def _(work):
+    return extract(work, work / "no_such_campaign")
+
+
+@case("campaign: campaign.toml missing", "campaign.toml")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "campaign.toml").unlink()
+    return extract(work, camp)
+
+
+@case("campaign: campaign.toml not TOML", "campaign.toml")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "campaign.toml").write_text("name = 'x\n")
+    return extract(work, camp)
+
+
+@case("campaign: unknown quantity", "quantity")
+def _(work):
+    camp = campaign_copy(work)
+    edit_toml(camp / "campaign.toml", lambda d: d.__setitem__("quantity", "velocity"))
+    return extract(work, camp)
+
+
+@case("campaign: frame file named but absent", "frame")
+def _(work):
+    camp = campaign_copy(work)
+    edit_toml(camp / "campaign.toml", lambda d: d.__setitem__("frame", "model_v2.toml"))
+    return extract(work, camp)
+
+
+@case("campaign: factor of unknown kind", "kind")
+def _(work):
+    camp = campaign_copy(work)
+    edit_toml(camp / "campaign.toml", lambda d: d["factors"]["bolt_A"].__setitem__("kind", "torque"))
+    return extract(work, camp)
+
+
+@case("campaign: tightening factor on an unknown joint", "joint")
+def _(work):
+    camp = campaign_copy(work)
+    edit_toml(camp / "campaign.toml", lambda d: d["factors"]["bolt_A"].__setitem__("joint", "Z"))
+    return extract(work, camp)
+
+
+@case("campaign: design.csv missing", "design.csv")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "design.csv").unlink()
+    return extract(work, camp)
+
+
+@case("campaign: undeclared level in design.csv", "level")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "design.csv", lambda rows: rows.__setitem__(1, [rows[1][0], "7"]))
+    return extract(work, camp)
+
+
+@case("campaign: duplicated test id in design.csv", "design.csv")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "design.csv", lambda rows: rows.append(list(rows[1])))
+    return extract(work, camp)
+
+
+@case("campaign: a design test without FRF rows", "no rows")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "design.csv", lambda rows: rows.append(["3", "2"]))
+    return extract(work, camp)
+
+
+@case("campaign: FRF rows of a test not in design.csv", "not in design.csv")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: [rows[0]] + [["9", *r[1:]] if r[0] == "2" else r for r in rows[1:]])
+    return extract(work, camp)
+
+
+@case("campaign: frf.csv column missing", "imag")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: [r[:4] for r in rows])
+    return extract(work, camp)
+
+
+@case("campaign: frf.csv empty", "frf.csv")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "frf.csv").write_text("")
+    return extract(work, camp)
+
+
+@case("campaign: frf.csv header only", "frf.csv")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "frf.csv").write_text("test_id,sensor,frequency_hz,real,imag\n")
+    return extract(work, camp)
+
+
+@case("campaign: NaN in an FRF value", "real")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: rows[10].__setitem__(3, "nan"))
+    return extract(work, camp)
+
+
+@case("campaign: text in a numeric FRF column", "imag")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: rows[10].__setitem__(4, "n/a"))
+    return extract(work, camp)
+
+
+@case("campaign: frequency axis not increasing", "frequency_hz")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: rows.__setitem__(slice(20, 22), [rows[21], rows[20]]))
+    return extract(work, camp)
+
+
+@case("campaign: duplicated FRF row", "duplicated")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: rows.insert(30, list(rows[30])))
+    return extract(work, camp)
+
+
+@case("campaign: unknown sensor in frf.csv", "s9")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: [rows[0]] + [[r[0], "s9", *r[2:]] if r[0] == "2" else r
+                                                        for r in rows[1:]])
+    return extract(work, camp)
+
+
+@case("campaign: both frf.csv and frf.parquet", "frf.parquet")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "frf.parquet").write_bytes(b"PAR1")
+    return extract(work, camp)
+
+
+@case("campaign: moments.csv with a negative std", "std_hz")
+def _(work):
+    camp = campaign_copy(work)
+    (camp / "moments.csv").write_text("mode,mean_hz,std_hz\n1,23.5,-0.1\n2,97.0,0.3\n")
+    return ["identify", str(camp), "--method", "moments", "--out", str(work / "out")]
+
+
+# ------------------------------------------------------------------ the command line (CONTRACTS.md section 3)
+
+@case("option: --count zero", "--count")
+def _(work):
+    return modes(work, frame_with(work), "--count", "0")
+
+
+@case("option: --count not a number", "--count")
+def _(work):
+    return modes(work, frame_with(work), "--count", "ten")
+
+
+@case("option: unknown propagation method", "--method")
+def _(work):
+    return ["propagate", str(frame_with(work)), "--method", "smr3", "--out", str(work / "out")]
+
+
+@case("option: --samples negative", "--samples")
+def _(work):
+    return ["propagate", str(frame_with(work)), "--method", "mc", "--samples", "-5", "--out", str(work / "out")]
+
+
+@case("option: --out missing", "--out")
+def _(work):
+    return ["modes", str(frame_with(work))]
+
+
+@case("option: unknown command", "invalid choice")
+def _(work):
+    return ["modal", str(frame_with(work)), "--out", str(work / "out")]
+
+
+@case("option: identify without --method", "--method")
+def _(work):
+    return ["identify", str(campaign_copy(work)), "--out", str(work / "out")]
+
+
+@case("propagate: no joint varies", "cov")
+def _(work):
+    return ["propagate", str(frame_with(work, lambda d: d["joints"][0].__setitem__("cov", 0.0))),
+            "--method", "smr1", "--out", str(work / "out")]
+
+
+# ------------------------------------------------------------------ running the catalogue
+
+def _files(root: Path) -> set[Path]:
+    # --out's lock file lives beside --out, by design (CONTRACTS.md section 3: a second run must refuse)
+    return {p for p in root.rglob("*") if not p.name.endswith(".lock")}
+
+
+def test_the_catalogue_is_large_and_its_names_distinct():
+    names = [c.name for c in CASES]
+    assert len(set(names)) == len(names)
+    assert len(CASES) >= 60, f"{len(CASES)} cases"
+
+
+@pytest.mark.parametrize("bad", CASES, ids=[c.name for c in CASES])
+def test_bad_input_is_refused_in_one_line_and_nothing_is_written(bad: Case, tmp_path, pristine_campaign):
+    _PRISTINE[:] = [pristine_campaign]
+    argv = bad.build(tmp_path)
+    before_files, before = _files(tmp_path), digest(sorted(_files(tmp_path)))
+    status, stderr = run_cli(argv)
+    lines = error_lines(stderr)
+    assert status == 2, f"exit {status}, stderr: {stderr!r}"
+    assert len(lines) == 1, f"expected one line, got {lines}"
+    assert bad.fragment.lower() in lines[0].lower(), lines[0]
+    assert _files(tmp_path) == before_files, sorted(map(str, _files(tmp_path) - before_files))
+    assert digest(sorted(before_files)) == before, "an input file changed"
