@@ -7,7 +7,7 @@ found, and saves a full-page PNG beside the report (or ``--png``). Not part of C
 Drives the system's Chromium (Debian: ``apt-get install chromium``) with Python playwright
 (``pip install -e ".[screenshot]"``; no ``playwright install``: the browser is not downloaded)::
 
-    python benchmarks/screenshot_report.py reports/demo/index.html [--png reports/demo/screenshot.png]
+    python benchmarks/screenshot_report.py out/demo/index.html [--png out/demo/screenshot.png]
 """
 
 from __future__ import annotations

@@ -18,6 +18,17 @@ from pathlib import Path
 
 import pytest
 from conftest import REPO, cut_example_campaign, digest, dump_toml, error_lines, run_cli
+from test_matrix_model import (
+    N,
+    asymmetric,
+    chain_matrices,
+    dofs_text,
+    indefinite_mass,
+    model_data,
+    negative_joint,
+    with_value,
+    write_model,
+)
 
 FRAME = REPO / "frames" / "one_bolt_vertical.toml"
 
@@ -308,6 +319,56 @@ def _(work):
     return ["identify", str(camp), "--method", "moments", "--out", str(work / "out")]
 
 
+# ------------------------------------------------------------------ matrix models (CONTRACTS.md section 4)
+
+def matrix_model(work: Path, fmt: str = "matrix-market", matrices=None, data=None,
+                 dofs: str | None = None) -> list[str]:
+    """The spring-mass chain of tests/test_matrix_model.py as a model folder, broken as asked, then `modes`."""
+    path = write_model(work / "model", fmt, matrices=matrices, data=data)
+    if dofs is not None:
+        (work / "model" / "dofs.csv").write_text(dofs)
+    return modes(work, path, "--count", "3")
+
+
+def _changed(key: str, change) -> dict:
+    matrices = chain_matrices()
+    matrices[key] = change(matrices[key].copy())
+    return matrices
+
+
+def _data(change, fmt: str = "matrix-market") -> dict:
+    data = model_data(fmt)
+    change(data)
+    return data
+
+
+MATRIX_CASES = {
+    "matrix model: mass key missing": (lambda w: matrix_model(w, data=_data(lambda d: d.pop("mass"))), "mass"),
+    "matrix model: unknown format": (lambda w: matrix_model(w, data=_data(lambda d: d.__setitem__("format", "hdf5"))),
+                                     "format"),
+    "matrix model: stiffness not symmetric": (lambda w: matrix_model(w, matrices=_changed("stiffness_rest",
+                                                                                          asymmetric)), "symmetric"),
+    "matrix model: mass not positive definite": (lambda w: matrix_model(w, matrices=_changed("mass", indefinite_mass)),
+                                                 "positive definite"),
+    "matrix model: joint stiffness negative": (lambda w: matrix_model(w, matrices=_changed("A", negative_joint)),
+                                               "semi-definite"),
+    "matrix model: NaN in a matrix": (lambda w: matrix_model(w, matrices=_changed("stiffness_rest",
+                                                                                  with_value(2, 2, float("nan")))),
+                                      "non-finite"),
+    "matrix model: sizes disagree with dofs.csv": (lambda w: matrix_model(w, dofs=dofs_text(
+        [(i, i + 1, "ux", 0.1 * i, 0.0, 0.0) for i in range(N + 1)])), "dofs.csv"),
+    "matrix model: dof index given twice": (lambda w: matrix_model(w, dofs=dofs_text(
+        [(0, 1, "ux", 0, 0, 0)] + [(i - 1, i + 1, "ux", 0.1 * i, 0.0, 0.0) for i in range(1, N)])), "index"),
+    "matrix model: sensor on an unknown node": (lambda w: matrix_model(w, data=_data(
+        lambda d: d["sensors"][0].__setitem__("node", 99))), "sensors[0]"),
+    "matrix model: op4 matrix name absent": (lambda w: matrix_model(w, "op4", data=_data(
+        lambda d: d["joints"][0].__setitem__("stiffness", "KJC"), "op4")), "KJC"),
+}
+
+for _name, (_build, _fragment) in MATRIX_CASES.items():
+    case(_name, _fragment)(_build)
+
+
 # ------------------------------------------------------------------ the command line (CONTRACTS.md section 3)
 
 @case("option: --count zero", "--count")
@@ -351,6 +412,75 @@ def _(work):
             "--method", "smr1", "--out", str(work / "out")]
 
 
+# ------------------------------------------------------------------ --out (CONTRACTS.md section 3: output rules)
+
+@case("out: the empty string", "--out")
+def _(work):
+    return ["modes", str(frame_with(work)), "--out", ""]
+
+
+@case("out: the campaign itself", "input")
+def _(work):
+    camp = campaign_copy(work)
+    return extract(work, camp)[:-1] + [str(camp)]
+
+
+@case("out: inside the campaign", "input")
+def _(work):
+    camp = campaign_copy(work)
+    return ["extract", str(camp), "--out", str(camp / "results")]
+
+
+@case("out: holds the input campaign", "input")
+def _(work):
+    camp = campaign_copy(work)
+    return ["extract", str(camp), "--out", str(work), "--force"]
+
+
+@case("out: another campaign", "campaign or model folder")
+def _(work):
+    camp = campaign_copy(work)
+    return ["modes", str(frame_with(work)), "--out", str(camp), "--force"]
+
+
+@case("out: the frame file's folder", "input")
+def _(work):
+    return ["modes", str(frame_with(work)), "--out", str(work)]
+
+
+@case("out: an existing file", "not a directory")
+def _(work):
+    (work / "out").write_text("notes\n")
+    return modes(work, frame_with(work))
+
+
+@case("out: an earlier run's set without --force", "--force")
+def _(work):
+    (work / "out").mkdir()
+    (work / "out" / "modes.csv").write_text("mode,frequency_hz\n1,1.0\n")
+    return modes(work, frame_with(work))
+
+
+@case("out: a folder of other files, even with --force", "does not write")
+def _(work):
+    (work / "out").mkdir()
+    (work / "out" / "thesis.tex").write_text("\\chapter{}\n")
+    return modes(work, frame_with(work), "--force")
+
+
+@case("out: locked by a run in progress", "another workbench run")
+def _(work):
+    import filelock
+
+    lock = filelock.FileLock(work / ".out.lock", timeout=0)
+    lock.acquire()
+    _HELD.append(lock)  # released by the test after the run
+    return modes(work, frame_with(work), "--force")
+
+
+_HELD: list = []
+
+
 # ------------------------------------------------------------------ running the catalogue
 
 def _files(root: Path) -> set[Path]:
@@ -369,7 +499,11 @@ def test_bad_input_is_refused_in_one_line_and_nothing_is_written(bad: Case, tmp_
     _PRISTINE[:] = [pristine_campaign]
     argv = bad.build(tmp_path)
     before_files, before = _files(tmp_path), digest(sorted(_files(tmp_path)))
-    status, stderr = run_cli(argv)
+    try:
+        status, stderr = run_cli(argv)
+    finally:
+        while _HELD:
+            _HELD.pop().release()
     lines = error_lines(stderr)
     assert status == 2, f"exit {status}, stderr: {stderr!r}"
     assert len(lines) == 1, f"expected one line, got {lines}"

@@ -42,7 +42,7 @@ def test_existing_output_is_replaced_only_with_force(frame_file, tmp_path, capsy
     before = (out / "modes.csv").read_text()
     assert main(["modes", str(path), "--count", "3", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "exists; pass --force" in err and err.count("\n") == 1
+    assert "from an earlier run; pass --force" in err and err.count("\n") == 1
     assert (out / "modes.csv").read_text() == before
     assert main(["modes", str(path), "--count", "3", "--out", str(out), "--force"]) == 0
     assert len((out / "modes.csv").read_text().splitlines()) == 4

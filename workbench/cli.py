@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
@@ -20,9 +21,11 @@ from workbench.identify.bayes import Posterior, bayes_identify
 from workbench.identify.data import check_moments
 from workbench.identify.moments import MomentFit, moment_matching
 from workbench.identify.record import identification_record
-from workbench.io.outputs import OutputExistsError, csv_text, json_text, write_outputs
+from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
+from workbench.model.matrix_file import is_matrix_model, read_matrix_model
+from workbench.model.matrix_model import matrix_model_modes
 from workbench.model.modal import model_modes
 from workbench.progress import Progress
 from workbench.uq.smr import propagate
@@ -67,16 +70,20 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _modes(args: argparse.Namespace) -> str:
-    model = assemble(read_frame(args.frame))
-    modes = model_modes(model, args.count)
+def _modes(args: argparse.Namespace, out: OutputSet) -> str:
+    if is_matrix_model(args.frame):
+        matrices = read_matrix_model(args.frame)
+        modes, name, size = matrix_model_modes(matrices, args.count), matrices.name, matrices.mass.shape[0]
+    else:
+        model = assemble(read_frame(args.frame))
+        modes, name, size = model_modes(model, args.count), model.frame.name, model.size
     text = csv_text(["mode", "frequency_hz"],
                     ((k + 1, float(f)) for k, f in enumerate(modes.frequency_hz)))
-    write_outputs(args.out, {"modes.csv": text}, force=args.force)
-    return f"{modes.count} modes of {model.frame.name!r} ({model.size} dofs) written to {args.out}/modes.csv"
+    out.commit({"modes.csv": text})
+    return f"{modes.count} modes of {name!r} ({size} dofs) written to {args.out}/modes.csv"
 
 
-def _propagate(args: argparse.Namespace) -> str:
+def _propagate(args: argparse.Namespace, out: OutputSet) -> str:
     model = assemble(read_frame(args.frame))
     joints = joint_model(model.frame)
     if not joints.random.any():
@@ -96,11 +103,11 @@ def _propagate(args: argparse.Namespace) -> str:
     if moments.proximity is not None:
         run["proximity_factor"] = [float(p) if np.isfinite(p) else None for p in moments.proximity]
         run["dispersion"] = np.asarray(moments.dispersion).tolist()
-    write_outputs(args.out, {"moments.csv": table, "run.json": json_text(run)}, force=args.force)
+    out.commit({"moments.csv": table, "run.json": json_text(run)})
     return f"{args.method}: moments of {moments.count} modes in {wall:.3f} s written to {args.out}"
 
 
-def _extract(args: argparse.Namespace) -> str:
+def _extract(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.io.campaign import load_campaign
     from workbench.workflow.measured import extract_campaign
 
@@ -119,17 +126,17 @@ def _extract(args: argparse.Namespace) -> str:
             for sensor, fit, weight in zip(extraction.sets[t].responses, est.fits, est.weights):
                 quality_rows.append((t, k, sensor, fit.frequency_hz, fit.damping_ratio, fit.damping_scatter,
                                      fit.circle_error, fit.points_used, weight, "|".join(fit.flags)))
-    write_outputs(args.out, {
+    out.commit({
         "modes.csv": csv_text(["test_id", "mode", "frequency_hz", "damping_ratio"], modes_rows),
         "quality.csv": csv_text(["test_id", "mode", "curve", "frequency_hz", "damping_ratio", "damping_scatter",
                                  "circle_error", "points_used", "weight", "flags"], quality_rows),
-    }, force=args.force)
+    })
     note = f"; {flagged} flagged (see quality.csv)" if flagged else ""
     return (f"{len(extraction.bands)} modes x {len(extraction.estimates)} tests of {campaign.name!r} by circle fit"
             f"{note}; written to {args.out}")
 
 
-def _identify(args: argparse.Namespace) -> str:
+def _identify(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.io.campaign import load_campaign
     from workbench.workflow.measured import measured_modes
 
@@ -153,7 +160,7 @@ def _identify(args: argparse.Namespace) -> str:
     wall = time.perf_counter() - start
     record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
     files["identification.json"] = json_text(record)
-    write_outputs(args.out, files, force=args.force)
+    out.commit(files)
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
                         for name, j in record["joints"].items())
     return f"{args.method} on {campaign.name!r} ({data.source}): {summary}; written to {args.out}"
@@ -163,40 +170,36 @@ def _notify(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
-def _write_report(run, out: str, force: bool, start: float) -> str:
+def _write_report(run, out: OutputSet, start: float) -> str:
     from workbench.report.page import render_report
 
-    text = render_report(run, time.perf_counter() - start)
-    write_outputs(out, {"index.html": text}, force=force)
-    return f"{out}/index.html"
+    out.commit({"index.html": render_report(run, time.perf_counter() - start)})
+    return f"{out.out}/index.html"
 
 
-def _report(args: argparse.Namespace) -> str:
+def _report(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.workflow.study import report_run
 
     start = time.perf_counter()
-    if (Path(args.out) / "index.html").exists() and not args.force:  # fail before minutes of work
-        raise OutputExistsError(f"{Path(args.out) / 'index.html'}: exists; pass --force to replace it")
     run = report_run(args.campaign, joints_from=args.joints_from or (), seed=args.seed, samples=args.samples,
                      bayes=not args.no_bayes, bayes_steps=args.steps, workers=args.workers,
                      progress=_progress(), notify=_notify)
-    return f"report of {run.studies[0].name!r} written to {_write_report(run, args.out, args.force, start)}"
+    return f"report of {run.studies[0].name!r} written to {_write_report(run, out, start)}"
 
 
-DEMO_OUT = "reports/demo"
+DEMO_OUT = "out/demo"  # untracked (.gitignore): the demo never rewrites a file of the repository
 
 
-def _demo(args: argparse.Namespace) -> str:
+def _demo(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.workflow.study import demo_run
 
     start = time.perf_counter()
     run = demo_run(args.campaigns, seed=args.seed, samples=args.samples, bayes_steps=args.steps,
                    workers=args.workers, progress=_progress(), notify=_notify)
-    # the demo's report is the main job's output: it replaces its own index.html on every run
-    return f"demo report written to {_write_report(run, args.out, True, start)}"
+    return f"demo report written to {_write_report(run, out, start)}"
 
 
-def _diagnose(args: argparse.Namespace) -> str:
+def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.report.diagnosis_page import diagnosis_html
     from workbench.workflow.diagnosis import diagnose_campaign
 
@@ -206,22 +209,21 @@ def _diagnose(args: argparse.Namespace) -> str:
     done = diagnose_campaign(args.campaign, args.count, say)
     record, campaign = done.record, done.campaign
     page = diagnosis_html(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
-    write_outputs(args.out, {"diagnosis.json": json_text(record), "index.html": page}, force=args.force)
+    out.commit({"diagnosis.json": json_text(record), "index.html": page})
     v = record["verdict"]
     where = f" at {v['where']}" if v["where"] else ""
     return (f"{record['campaign']!r}: {v['effect']}{where}, shrinkage {100 * v['shrinkage']:.0f} % (baseline RMS "
             f"{100 * record['baseline']['freq_rms_rel_error']:.3f} %); written to {args.out}")
 
 
-def _validate_diagnosis(args: argparse.Namespace) -> str:
+def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.report.diagnosis_page import validation_text
     from workbench.workflow.diagnosis import validate, validation_files
 
     summary = validate(args.cases, args.seed, args.frame, progress=_progress())
-    if args.out is not None:
-        write_outputs(args.out, validation_files(summary), force=args.force)
+    out.commit(validation_files(summary))
     print(validation_text(summary))
-    return f"{summary['cases']} blind cases" + (f"; written to {args.out}" if args.out else "")
+    return f"{summary['cases']} blind cases; written to {args.out}"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -230,30 +232,34 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    def command(name: str, description: str, run) -> argparse.ArgumentParser:
-        # every command writes under --out (CONTRACTS.md section 3) and replaces only with --force
+    def command(name: str, description: str, run, writes: tuple[str, ...]) -> argparse.ArgumentParser:
+        # every command writes one output set under --out (CONTRACTS.md section 3), replaced only with --force
         p = sub.add_parser(name, help=description)
-        p.add_argument("--out", required=True, help="output directory (created if absent)")
-        p.add_argument("--force", action="store_true", help="replace existing files in --out")
-        p.set_defaults(run=run)
+        p.add_argument("--out", required=True, help="output directory (created if absent; never an input's)")
+        p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
+        p.set_defaults(run=run, writes=writes)
         return p
 
-    p = command("modes", "nominal eigenfrequencies of a frame file (joints at their mean)", _modes)
-    p.add_argument("frame", help="frame.toml (CONTRACTS.md section 1)")
+    p = command("modes", "nominal eigenfrequencies of a frame file (joints at their mean)", _modes,
+                ("modes.csv",))
+    p.add_argument("frame", help="frame.toml (CONTRACTS.md section 1) or a matrix model.toml (section 4)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
 
-    p = command("extract", "modal frequencies and damping of every test by circle fit", _extract)
+    p = command("extract", "modal frequencies and damping of every test by circle fit", _extract,
+                ("modes.csv", "quality.csv", "shapes.csv"))
     p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
     p.add_argument("--count", type=_positive_int, help="keep the N lowest modes found")
     p.add_argument("--bands", help="override the mode bands: 'lo:hi,lo:hi,...' in Hz")
 
-    p = command("identify", "mean and CoV of each joint group's modulus from a campaign", _identify)
+    p = command("identify", "mean and CoV of each joint group's modulus from a campaign", _identify,
+                ("identification.json", "posterior.nc"))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--method", required=True, choices=["moments", "bayes"])
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
 
-    p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate)
+    p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate,
+                ("moments.csv", "run.json"))
     p.add_argument("frame", help="frame.toml whose joints have a cov (CONTRACTS.md section 1)")
     p.add_argument("--method", required=True, choices=["smr1", "smr2", "adaptive", "pert2", "mc"])
     p.add_argument("--samples", type=_positive_int, default=10_000, help="Monte Carlo samples (default 10000)")
@@ -261,7 +267,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
     p.add_argument("--workers", type=_positive_int, default=1, help="Monte Carlo worker processes")
 
-    p = command("report", "a self-contained HTML identification report of a campaign (index.html)", _report)
+    p = command("report", "a self-contained HTML identification report of a campaign (index.html)", _report,
+                ("index.html",))
     p.add_argument("campaign", help="campaign directory (FRFs, modes.csv or moments.csv)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
     p.add_argument("--samples", type=_positive_int, default=1000,
@@ -276,7 +283,7 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the main job on the bundled campaigns: identify, propagate, predict, report")
     p.add_argument("--out", default=DEMO_OUT,
-                   help=f"output directory (default {DEMO_OUT}); the demo replaces its index.html on every run")
+                   help=f"output directory (default {DEMO_OUT}); the demo replaces its own report on every run")
     p.add_argument("--force", action="store_true", help="accepted for symmetry: the demo always replaces its report")
     p.add_argument("--campaigns", default="campaigns", help="directory of the bundled campaigns (default ./campaigns)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
@@ -284,9 +291,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="Monte Carlo samples of the Figure 11 references and the FRF bands (default 500)")
     p.add_argument("--steps", type=_positive_int, default=2000, help="emcee steps kept per walker (default 2000)")
     p.add_argument("--workers", type=_positive_int, default=2, help="processes for circle fits and Monte Carlo")
-    p.set_defaults(run=_demo)
+    p.set_defaults(run=_demo, writes=("index.html",))
 
-    p = command("diagnose", "sim-to-real gap: where the model misses, which effect, how far it shrinks", _diagnose)
+    p = command("diagnose", "sim-to-real gap: where the model misses, which effect, how far it shrinks", _diagnose,
+                ("diagnosis.json", "index.html"))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
 
@@ -294,9 +302,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--cases", type=_positive_int, default=40, help="number of cases (default 40)")
     p.add_argument("--seed", type=int, default=0, help="seed of the hidden effects and the rig (default 0)")
     p.add_argument("--frame", default="frames/two_bolt.toml", help="nominal frame (default frames/two_bolt.toml)")
-    p.add_argument("--out", help="also write summary.json and cases.csv here")
-    p.add_argument("--force", action="store_true", help="replace existing files in --out")
-    p.set_defaults(run=_validate_diagnosis)
+    p.add_argument("--out", required=True, help="output directory: summary.json and cases.csv")
+    p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
+    p.set_defaults(run=_validate_diagnosis, writes=("summary.json", "cases.csv"))
     return parser
 
 
@@ -308,13 +316,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exc.code or 0)
     start = time.perf_counter()
     try:
-        message = args.run(args)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", UserWarning)
+            try:
+                with claim_output(args.out, command=args.command, names=args.writes,
+                                  force=args.force or args.command == "demo", inputs=_inputs(args)) as out:
+                    message = args.run(args, out)
+            finally:  # warnings first, one line each, also when the command then fails
+                _print_warnings(args.command, caught)
     except (ValueError, KeyError, OutputExistsError, OSError) as exc:
         text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         print(f"workbench {args.command}: {' '.join(str(text).split())}", file=sys.stderr)
         return 2
     print(f"{message} in {time.perf_counter() - start:.2f} s")
     return 0
+
+
+def _inputs(args: argparse.Namespace) -> list[Path]:
+    """The paths a command reads, which --out may neither be, lie inside, nor hold."""
+    paths = [Path(p) for p in (getattr(args, "frame", None), getattr(args, "campaign", None),
+                               getattr(args, "campaigns", None), *(getattr(args, "joints_from", None) or ())) if p]
+    # a matrix model's folder holds its matrices: it is an input directory as a campaign is
+    return [p.parent if p.is_file() and p.suffix == ".toml" and is_matrix_model(p) else p for p in paths]
+
+
+def _print_warnings(command: str, caught: list[warnings.WarningMessage]) -> None:
+    for seen in dict.fromkeys(" ".join(str(w.message).split()) for w in caught if issubclass(w.category, UserWarning)):
+        print(f"workbench {command}: warning: {seen}", file=sys.stderr)
 
 
 if __name__ == "__main__":
