@@ -319,6 +319,35 @@ def _(work):
     return ["identify", str(camp), "--method", "moments", "--out", str(work / "out")]
 
 
+@case("campaign: a dead channel (all-zero FRF)", "no resonance")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "frf.csv", lambda rows: [rows[0]] + [[*r[:3], "0", "0"] if r[0] == "2" else r for r in rows[1:]])
+    return extract(work, camp)
+
+
+@case("campaign: test 001 in design.csv, 1 in frf.csv", "not in design.csv")
+def _(work):
+    camp = campaign_copy(work)
+    edit_csv(camp / "design.csv", lambda rows: [rows[0]] + [["001" if r[0] == "1" else r[0], *r[1:]] for r in rows[1:]])
+    return extract(work, camp)
+
+
+def test_001_01_and_1_are_three_tests(tmp_path, pristine_campaign):
+    """CONTRACTS.md section 2: test ids are strings; a leading zero makes another test."""
+    camp = tmp_path / "campaign"
+    shutil.copytree(pristine_campaign, camp)
+    rows = [line.split(",") for line in (camp / "frf.csv").read_text().splitlines()]
+    test_one = [r for r in rows[1:] if r[0] == "1"]
+    frf = rows[:1] + [[tid, *r[1:]] for tid in ("001", "01", "1") for r in test_one]
+    (camp / "frf.csv").write_text("".join(",".join(r) + "\n" for r in frf))
+    (camp / "design.csv").write_text("test_id,bolt_A\n001,1\n01,2\n1,3\n")
+    status, stderr = run_cli(["extract", str(camp), "--out", str(tmp_path / "out"), "--count", "1"])
+    assert status == 0, stderr
+    ids = [line.split(",")[0] for line in (tmp_path / "out" / "modes.csv").read_text().splitlines()[1:]]
+    assert ids == ["001", "01", "1"]
+
+
 # ------------------------------------------------------------------ matrix models (CONTRACTS.md section 4)
 
 def matrix_model(work: Path, fmt: str = "matrix-market", matrices=None, data=None,

@@ -16,11 +16,21 @@ import tomllib
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from workbench.io.campaign_checks import (
+    CampaignError,
+    check_duplicates,
+    check_flat_curves,
+    check_tests,
+    check_values,
+    fail,
+    integer_ids,
+    line_of,
+)
 from workbench.io.outputs import write_outputs
 from workbench.model.frame import Frame, FrameFileError
 from workbench.model.frame_file import frame_to_toml, read_frame, toml_string
@@ -36,10 +46,6 @@ FRF_COLUMNS = ("test_id", "sensor", "frequency_hz", "real", "imag")
 MODES_COLUMNS = ("test_id", "mode", "frequency_hz", "damping_ratio")
 MOMENTS_COLUMNS = ("mode", "mean_hz", "std_hz")
 _CAMPAIGN_KEYS = {"name", "description", "frame", "quantity", "reference", "synthetic", "source", "factors"}
-
-
-class CampaignError(ValueError):
-    """A campaign breaks the contract; one line: ``file: [line N: ]problem``."""
 
 
 @dataclass(frozen=True)
@@ -97,20 +103,15 @@ class Campaign:
         raise KeyError(f"{self.path or self.name}: factors: no factor named {name!r}")
 
 
-def _fail(path: Path | str, problem: str, line: int | None = None) -> NoReturn:
-    where = f"line {line}: " if line is not None else ""
-    raise CampaignError(f"{path}: {where}{problem}")
-
-
 def _read_toml(path: Path) -> dict[str, Any]:
     if not path.is_file():
-        _fail(path, "required file is missing")
+        fail(path, "required file is missing")
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
-        _fail(path, f"not valid TOML: {exc}")
+        fail(path, f"not valid TOML: {exc}")
     except UnicodeDecodeError:
-        _fail(path, "not UTF-8 text")
+        fail(path, "not UTF-8 text")
 
 
 def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, ...]) -> pd.DataFrame:
@@ -127,85 +128,56 @@ def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, .
                 table = pd.read_csv(path, dtype={c: str for c in text_columns}, keep_default_na=False,
                                     na_values=[], skipinitialspace=True, index_col=False)
     except (pd.errors.ParserError, pd.errors.ParserWarning, pd.errors.EmptyDataError, ValueError, OSError) as exc:
-        _fail(path, f"cannot be read as a table: {' '.join(str(exc).split())}")
+        fail(path, f"cannot be read as a table: {' '.join(str(exc).split())}")
     missing = [c for c in columns if c not in table.columns]
     extra = [c for c in table.columns if c not in columns]
     if missing:
-        _fail(path, f"missing column(s) {', '.join(missing)} (expected {', '.join(columns)})")
+        fail(path, f"missing column(s) {', '.join(missing)} (expected {', '.join(columns)})")
     if extra:
-        _fail(path, f"unknown column(s) {', '.join(map(str, extra))} (expected {', '.join(columns)})")
+        fail(path, f"unknown column(s) {', '.join(map(str, extra))} (expected {', '.join(columns)})")
     table = table[list(columns)].reset_index(drop=True)
     for column in columns:
         if column in text_columns:
             blank = table[column].astype(str).str.strip() == ""
             if blank.any():
-                _fail(path, f"{column} is empty", _line(path, int(np.flatnonzero(blank)[0])))
+                fail(path, f"{column} is empty", line_of(path, int(np.flatnonzero(blank)[0])))
             table[column] = table[column].astype(str).str.strip()
             continue
         values = pd.to_numeric(table[column], errors="coerce")
         bad = ~np.isfinite(values.to_numpy(dtype=float))
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            _fail(path, f"{column} = {str(table[column].iloc[row])!r} is not a finite number", _line(path, row))
+            fail(path, f"{column} = {str(table[column].iloc[row])!r} is not a finite number", line_of(path, row))
         table[column] = values.astype(float)
     return table
 
 
-def _line(path: Path, row: int) -> int | None:
-    """Line in the file of data row ``row`` (header on line 1); None for parquet."""
-    return None if path.suffix == ".parquet" else row + 2
-
-
-def _check_duplicates(table: pd.DataFrame, keys: list[str], path: Path) -> None:
-    dup = table.duplicated(keys, keep="first")
-    if dup.any():
-        row = int(np.flatnonzero(dup)[0])
-        what = ", ".join(f"{k} = {table[k].iloc[row]}" for k in keys)
-        _fail(path, f"duplicated row ({what})", _line(path, row))
-
-
-def _check_tests(table: pd.DataFrame, path: Path, design_ids: set[str], design_file: Path) -> None:
-    unknown = ~table["test_id"].isin(design_ids)
-    if unknown.any():
-        row = int(np.flatnonzero(unknown)[0])
-        _fail(path, f"test_id {table['test_id'].iloc[row]} is not in {design_file.name}", _line(path, row))
-
-
-def _integer_ids(*tables: pd.DataFrame | None) -> None:
-    """Make test_id integers in every table when all of them are integers (read as text)."""
-    present = [t for t in tables if t is not None]
-    values = pd.concat([t["test_id"] for t in present]) if present else pd.Series([], dtype=str)
-    if len(values) and values.str.fullmatch(r"[+-]?\d+").all():
-        for t in present:
-            t["test_id"] = t["test_id"].astype(np.int64)
-
-
 def _parse_factors(data: Any, path: Path, frame: Frame) -> tuple[Factor, ...]:
     if not isinstance(data, dict):
-        _fail(path, "factors: expected tables [factors.NAME]")
+        fail(path, "factors: expected tables [factors.NAME]")
     factors = []
     for name, table in data.items():
         where = f"factors.{name}"
         if not isinstance(table, dict):
-            _fail(path, f"{where}: expected a table")
+            fail(path, f"{where}: expected a table")
         unknown = sorted(set(table) - {"kind", "joint", "levels"})
         if unknown:
-            _fail(path, f"{where}.{unknown[0]}: unknown key (allowed: joint, kind, levels)")
+            fail(path, f"{where}.{unknown[0]}: unknown key (allowed: joint, kind, levels)")
         kind = table.get("kind")
         if kind not in FACTOR_KINDS:
-            _fail(path, f"{where}.kind: {kind!r} is not one of {', '.join(FACTOR_KINDS)}")
+            fail(path, f"{where}.kind: {kind!r} is not one of {', '.join(FACTOR_KINDS)}")
         joint = table.get("joint")
         if kind == "tightening":
             if joint is None:
-                _fail(path, f"{where}.joint: required for a tightening factor (the frame joint it acts on)")
+                fail(path, f"{where}.joint: required for a tightening factor (the frame joint it acts on)")
             if joint not in frame.joint_names:
-                _fail(path, f"{where}.joint: {joint!r} is not a joint of {frame.source} "
+                fail(path, f"{where}.joint: {joint!r} is not a joint of {frame.source} "
                             f"(joints: {', '.join(frame.joint_names) or 'none'})")
         elif joint is not None:
-            _fail(path, f"{where}.joint: only tightening factors name a joint")
+            fail(path, f"{where}.joint: only tightening factors name a joint")
         levels = table.get("levels")
         if not isinstance(levels, dict) or not levels:
-            _fail(path, f"{where}.levels: expected a non-empty table of level = description")
+            fail(path, f"{where}.levels: expected a non-empty table of level = description")
         factors.append(Factor(name, kind, {str(k): str(v) for k, v in levels.items()}, joint))
     return tuple(factors)
 
@@ -215,22 +187,22 @@ def _read_settings(path: Path) -> dict[str, Any]:
     data = _read_toml(path)
     unknown = sorted(set(data) - _CAMPAIGN_KEYS)
     if unknown:
-        _fail(path, f"{unknown[0]}: unknown key (allowed: {', '.join(sorted(_CAMPAIGN_KEYS))})")
+        fail(path, f"{unknown[0]}: unknown key (allowed: {', '.join(sorted(_CAMPAIGN_KEYS))})")
     for key in ("name", "frame", "synthetic"):
         if key not in data:
             expected = "true or false" if key == "synthetic" else "a string"
-            _fail(path, f"{key}: required key is missing (expected {expected})")
+            fail(path, f"{key}: required key is missing (expected {expected})")
     for key in ("name", "frame", "description", "source"):
         if key in data and not isinstance(data[key], str):
-            _fail(path, f"{key}: expected a string, got {data[key]!r}")
+            fail(path, f"{key}: expected a string, got {data[key]!r}")
     if not isinstance(data["synthetic"], bool):
-        _fail(path, f"synthetic: expected true or false, got {data['synthetic']!r}")
+        fail(path, f"synthetic: expected true or false, got {data['synthetic']!r}")
     quantity = data.get("quantity", "accelerance")
     if quantity not in QUANTITIES:
-        _fail(path, f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+        fail(path, f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
     reference = data.get("reference", "force")
     if reference not in REFERENCES:
-        _fail(path, f"reference: {reference!r} is not one of {', '.join(REFERENCES)}")
+        fail(path, f"reference: {reference!r} is not one of {', '.join(REFERENCES)}")
     return data
 
 
@@ -238,60 +210,60 @@ def _frf_path(directory: Path, path: Path, data: dict[str, Any]) -> Path | None:
     """``frf.csv`` or ``frf.parquet`` (not both), or None; a campaign with FRFs states its quantity."""
     frf_csv, frf_parquet = directory / "frf.csv", directory / "frf.parquet"
     if frf_csv.exists() and frf_parquet.exists():
-        _fail(directory, "holds both frf.csv and frf.parquet; keep one")
+        fail(directory, "holds both frf.csv and frf.parquet; keep one")
     frf_path = frf_csv if frf_csv.exists() else frf_parquet if frf_parquet.exists() else None
     if frf_path is not None and "quantity" not in data:
-        _fail(path, "quantity: required key is missing (expected receptance, mobility or accelerance)")
+        fail(path, "quantity: required key is missing (expected receptance, mobility or accelerance)")
     return frf_path
 
 
 def _read_design(design_path: Path, factors: tuple[Factor, ...]) -> pd.DataFrame:
     columns = ("test_id",) + tuple(f.name for f in factors)
     design = _read_table(design_path, columns, columns)
-    _check_duplicates(design, ["test_id"], design_path)
+    check_duplicates(design, ["test_id"], design_path)
     for factor in factors:
         bad = ~design[factor.name].isin(factor.levels)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            _fail(design_path, f"{factor.name} = {design[factor.name].iloc[row]!r} is not a declared "
-                               f"level (levels: {', '.join(factor.levels)})", _line(design_path, row))
+            fail(design_path, f"{factor.name} = {design[factor.name].iloc[row]!r} is not a declared "
+                               f"level (levels: {', '.join(factor.levels)})", line_of(design_path, row))
     return design
 
 
 def _read_frf(frf_path: Path, frame: Frame, ids: set[str], design_path: Path) -> pd.DataFrame:
     """The long-form FRF table: known tests and sensors, frequencies increasing, every test present."""
     frf = _read_table(frf_path, FRF_COLUMNS, ("test_id", "sensor"))
-    _check_tests(frf, frf_path, ids, design_path)
+    check_tests(frf, frf_path, ids, design_path)
     sensors = {s.name for s in frame.sensors}
     bad = ~frf["sensor"].isin(sensors)
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        _fail(frf_path, f"sensor {frf['sensor'].iloc[row]!r} is not a sensor of {frame.source} "
-                        f"(sensors: {', '.join(sorted(sensors)) or 'none'})", _line(frf_path, row))
-    _check_duplicates(frf, ["test_id", "sensor", "frequency_hz"], frf_path)
+        fail(frf_path, f"sensor {frf['sensor'].iloc[row]!r} is not a sensor of {frame.source} "
+                        f"(sensors: {', '.join(sorted(sensors)) or 'none'})", line_of(frf_path, row))
+    check_duplicates(frf, ["test_id", "sensor", "frequency_hz"], frf_path)
     step = frf.groupby(["test_id", "sensor"], sort=False)["frequency_hz"].diff()
     not_increasing = (step <= 0).to_numpy()
     if not_increasing.any():
         row = int(np.flatnonzero(not_increasing)[0])
-        _fail(frf_path, f"frequency_hz = {frf['frequency_hz'].iloc[row]:g} does not increase within "
+        fail(frf_path, f"frequency_hz = {frf['frequency_hz'].iloc[row]:g} does not increase within "
                         f"test {frf['test_id'].iloc[row]}, sensor {frf['sensor'].iloc[row]}",
-              _line(frf_path, row))
+              line_of(frf_path, row))
     if (frf["frequency_hz"] < 0).any():
         row = int(np.flatnonzero(frf["frequency_hz"] < 0)[0])
-        _fail(frf_path, "frequency_hz is negative", _line(frf_path, row))
+        fail(frf_path, "frequency_hz is negative", line_of(frf_path, row))
     without = sorted(ids - set(frf["test_id"]), key=str)
     if without:
-        _fail(frf_path, f"test {without[0]} of {design_path.name} has no rows")
+        fail(frf_path, f"test {without[0]} of {design_path.name} has no rows")
     if frame.excitation is None:
-        _fail(frame.source, "excitation: required when a campaign has FRFs")
+        fail(frame.source, "excitation: required when a campaign has FRFs")
     return frf
 
 
 def _read_modes(modes_path: Path, ids: set[str], design_path: Path) -> pd.DataFrame:
     modes = _read_table(modes_path, MODES_COLUMNS, ("test_id",))
-    _check_tests(modes, modes_path, ids, design_path)
-    _check_duplicates(modes, ["test_id", "mode"], modes_path)
-    _check_values(modes, modes_path, {"mode": "integer >= 1", "frequency_hz": "positive",
+    check_tests(modes, modes_path, ids, design_path)
+    check_duplicates(modes, ["test_id", "mode"], modes_path)
+    check_values(modes, modes_path, {"mode": "integer >= 1", "frequency_hz": "positive",
                                       "damping_ratio": "in [0, 1)"})
     modes["mode"] = modes["mode"].astype(np.int64)
     return modes
@@ -299,8 +271,8 @@ def _read_modes(modes_path: Path, ids: set[str], design_path: Path) -> pd.DataFr
 
 def _read_moments(moments_path: Path) -> pd.DataFrame:
     moments = _read_table(moments_path, MOMENTS_COLUMNS, ())
-    _check_duplicates(moments, ["mode"], moments_path)
-    _check_values(moments, moments_path, {"mode": "integer >= 1", "mean_hz": "positive",
+    check_duplicates(moments, ["mode"], moments_path)
+    check_values(moments, moments_path, {"mode": "integer >= 1", "mean_hz": "positive",
                                           "std_hz": "not negative"})
     moments["mode"] = moments["mode"].astype(np.int64)
     return moments
@@ -325,7 +297,7 @@ def load_campaign(directory: str | Path) -> Campaign:
     """
     directory = Path(directory)
     if not directory.is_dir():
-        _fail(directory, "is not a campaign directory")
+        fail(directory, "is not a campaign directory")
     path = directory / "campaign.toml"
     data = _read_settings(path)
     try:
@@ -341,32 +313,19 @@ def load_campaign(directory: str | Path) -> Campaign:
     if design_path.exists():
         design = _read_design(design_path, factors)
     elif frf_path is not None or modes_path.exists():
-        _fail(design_path, "required file is missing (the campaign has tests)")
+        fail(design_path, "required file is missing (the campaign has tests)")
     ids = set(design["test_id"]) if design is not None else set()
     frf = _read_frf(frf_path, frame, ids, design_path) if frf_path is not None else None
     modes = _read_modes(modes_path, ids, design_path) if modes_path.exists() else None
     moments = _read_moments(moments_path) if moments_path.exists() else None
     if design is None and frf is None and modes is None and moments is None:
-        _fail(directory, "holds neither tests (design.csv) nor moments.csv")
-    _integer_ids(design, frf, modes)
+        fail(directory, "holds neither tests (design.csv) nor moments.csv")
+    integer_ids(design, frf, modes)
     return Campaign(name=data["name"], frame=frame, synthetic=data["synthetic"],
                     quantity=data.get("quantity", "accelerance"), reference=data.get("reference", "force"),
                     description=data.get("description", ""), source=data.get("source", ""),
                     factors=factors, design=design, frf=frf, modes=modes, moments=moments,
                     frame_file=data["frame"], path=directory)
-
-
-_RULES = {"integer >= 1": lambda v: (v >= 1) & (v == np.round(v)), "positive": lambda v: v > 0,
-          "not negative": lambda v: v >= 0, "in [0, 1)": lambda v: (v >= 0) & (v < 1)}
-
-
-def _check_values(table: pd.DataFrame, path: Path, rules: dict[str, str]) -> None:
-    """Check each ``column: rule`` of `_RULES` on every row of ``table``."""
-    for column, rule in rules.items():
-        ok = _RULES[rule](table[column].to_numpy())
-        if not ok.all():
-            row = int(np.flatnonzero(~ok)[0])
-            _fail(path, f"{column} = {table[column].iloc[row]:g} must be {rule}", _line(path, row))
 
 
 def campaign_toml(campaign: Campaign) -> str:
@@ -452,19 +411,21 @@ def frf_set(campaign: Campaign, test_id: Any) -> FRFSet:
     Raises
     ------
     CampaignError
-        The test is unknown, or its sensors do not share one frequency axis.
+        The test is unknown, its sensors do not share one frequency axis, or a curve has no
+        resonance to fit (`check_flat_curves`).
     """
     if campaign.frf is None:
-        _fail(campaign.path or campaign.name, "has no FRFs (frf.csv)")
+        fail(campaign.path or campaign.name, "has no FRFs (frf.csv)")
     rows = campaign.frf[campaign.frf["test_id"] == test_id]
     if rows.empty:
-        _fail(campaign.path or campaign.name, f"frf: no rows for test_id {test_id!r}")
+        fail(campaign.path or campaign.name, f"frf: no rows for test_id {test_id!r}")
+    check_flat_curves(rows, campaign.path or campaign.name)
     order = [s.name for s in campaign.frame.sensors if s.name in set(rows["sensor"])]
     curves = [rows[rows["sensor"] == s] for s in order]
     axis = curves[0]["frequency_hz"].to_numpy()
     for s, c in zip(order, curves):
         if c.shape[0] != axis.size or not np.array_equal(c["frequency_hz"].to_numpy(), axis):
-            _fail(campaign.path or campaign.name, f"frf: test {test_id}: sensor {s} has another frequency axis")
+            fail(campaign.path or campaign.name, f"frf: test {test_id}: sensor {s} has another frequency axis")
     values = np.stack([c["real"].to_numpy() + 1j * c["imag"].to_numpy() for c in curves])
     return FRFSet(axis.astype(float), values, tuple(order), campaign.quantity)
 
@@ -490,9 +451,9 @@ def amplitude_of_tests(campaign: Campaign) -> np.ndarray | None:
     except ValueError:
         unknown = sorted(set(keys) - set(PAPER_AMPLITUDE_RATIOS))
         if unknown:
-            _fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels {unknown} are neither "
+            fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels {unknown} are neither "
                   f"numbers nor {'/'.join(PAPER_AMPLITUDE_RATIOS)}")
         values = np.array([PAPER_AMPLITUDE_RATIOS[k] for k in keys])
     if np.any(values <= 0) or not np.all(np.isfinite(values)):
-        _fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels must be positive numbers")
+        fail(campaign.path or campaign.name, f"factor {factor.name}: amplitude levels must be positive numbers")
     return values / values.min()

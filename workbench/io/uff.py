@@ -380,7 +380,7 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
         raise ValueError(f"{path}: holds no dataset 58 (function at nodal DOF)")
     table = pd.concat(tables, ignore_index=True)[list(FRF_COLUMNS)]
     ids = table["test_id"].astype(str)
-    if ids.str.fullmatch(r"[+-]?\d+").all():
+    if ids.str.fullmatch(r"0|[1-9]\d*").all():  # lossless only: "001" and "1" stay two tests
         table["test_id"] = ids.astype(np.int64)
     else:
         table["test_id"] = ids
