@@ -115,6 +115,8 @@ FRAME_CASES = {
     "frame: unknown beam theory": (lambda d: d.__setitem__("beam_theory", "kirchhoff"), None, "beam_theory"),
     "frame: element length zero": (lambda d: d.__setitem__("element_length", 0.0), None, "element_length"),
     "frame: element length negative": (lambda d: d.__setitem__("element_length", -0.01), None, "element_length"),
+    "frame: element length of a micrometre": (lambda d: d.__setitem__("element_length", 1e-6), None,
+                                              "element_length"),
     "frame: element length as text": (lambda d: d.__setitem__("element_length", "1 cm"), None, "element_length"),
     "frame: density negative": (lambda d: d["materials"]["aluminium"].__setitem__("density", -2700.0), None,
                                 "density"),

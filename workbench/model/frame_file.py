@@ -364,6 +364,7 @@ def parse_frame(data: dict[str, Any], source: str = "<frame>") -> Frame:
     sections = _sections(source, data, timoshenko)
     points, pts = _points(source, data)
     members = tuple(_members(top, points, materials, sections))
+    _check_mesh_size(source, points, members, element_length)
     _check_points_on_members(pts, points, members)
     joints = _joints(top, Frame(name, points, materials, sections, members))
     supports = _supports(top, points)
@@ -377,6 +378,17 @@ def parse_frame(data: dict[str, Any], source: str = "<frame>") -> Frame:
                  masses=tuple(masses), springs=tuple(springs), excitation=excitation,
                  sensors=tuple(sensors), damping_ratios=ratios, beam_theory=theory,
                  element_length=element_length, description=description, source=source)
+
+
+MAX_ELEMENTS = 400_000  # 1.2 million dofs, the largest models the scale targets ask for; far beyond, memory runs out
+
+
+def _check_mesh_size(source: str, points: dict, members: tuple, element_length: float) -> None:
+    """Refuse a mesh too large to build before it is allocated (an element length of 1e-6 m ended in MemoryError)."""
+    count = sum(math.ceil(math.dist(points[m.start], points[m.end]) / element_length) for m in members)
+    if count > MAX_ELEMENTS:
+        raise ValueError(f"{source}: element_length: {element_length:g} m would make {count} elements (at most "
+                         f"{MAX_ELEMENTS}); use a longer element_length, or check the units of the coordinates (m)")
 
 
 def toml_string(value: str) -> str:
