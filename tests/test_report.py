@@ -159,7 +159,7 @@ def test_existing_report_is_kept_without_force(report, capsys):
     _, out = report
     before = (out / "index.html").read_bytes()
     assert main(["report", str(REPO / "campaigns" / "paper_table3_one_bolt_vertical"), "--out", str(out)]) == 2
-    assert "exists; pass --force" in capsys.readouterr().err
+    assert "from an earlier run; pass --force" in capsys.readouterr().err
     assert (out / "index.html").read_bytes() == before
 
 
