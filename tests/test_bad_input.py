@@ -149,6 +149,13 @@ FRAME_CASES = {
     "frame: sensor dof unknown": (lambda d: d["sensors"][0].__setitem__("dof", "uz"), None, "sensors[0].dof"),
     "frame: duplicated sensor name": (lambda d: d["sensors"][1].__setitem__("name", "drive"), None, "drive"),
     "frame: damping ratio negative": (lambda d: d["damping"].__setitem__("ratios", [-0.01]), None, "damping"),
+    "frame: a floating member": (lambda d: (d["points"].update(loose_a=[1.0, 1.0], loose_b=[1.2, 1.0]),
+                                            d["members"].append({**d["members"][1], "name": "loose",
+                                                                 "start": "loose_a", "end": "loose_b"})),
+                                 None, "'loose'"),
+    "frame: coordinates in millimetres": (lambda d: d.__setitem__("points", {
+        k: [1000.0 * c for c in xy] for k, xy in d["points"].items()}) or d["joints"][0].__setitem__(
+        "span", [403.448, 423.448]), None, "mm"),
 }
 
 for _name, (_edit, _text, _fragment) in FRAME_CASES.items():

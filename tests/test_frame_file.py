@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 from conftest import shared_path
@@ -132,8 +133,8 @@ def test_reads_the_frame_written_by_another_program():
 
 
 def test_unknown_joint_name_is_named():
-    frame = parse_frame({"name": "x", "materials": {"al": {"youngs_modulus": 1.0, "density": 1.0}},
-                                                  "sections": {"s": {"area": 1.0, "second_moment": 1.0}},
+    frame = parse_frame({"name": "x", "materials": {"al": {"youngs_modulus": 70e9, "density": 2700.0}},
+                                                  "sections": {"s": {"area": 1e-4, "second_moment": 1e-9}},
                                                   "points": {"a": [0, 0], "b": [1, 0]},
                                                   "members": [{"name": "m", "start": "a", "end": "b",
                                                                "material": "al", "section": "s"}]})
@@ -218,3 +219,66 @@ def test_malformed_frame_is_rejected_with_one_line(tmp_path, edit, expected):
 def test_missing_file_is_one_line(tmp_path):
     with pytest.raises(FrameFileError, match="cannot read the frame file"):
         read_frame(tmp_path / "absent.toml")
+
+
+def _beam(length: float, element_length: float, supports: list | None = None, **material) -> dict:
+    return {"name": "beam", "element_length": element_length,
+            "materials": {"al": {"youngs_modulus": 70e9, "density": 2700.0, **material}},
+            "sections": {"s": {"area": 2.4e-4, "second_moment": 1.28e-9}},
+            "points": {"a": [0.0, 0.0], "b": [length, 0.0]},
+            "members": [{"name": "m", "start": "a", "end": "b", "material": "al", "section": "s"}],
+            "supports": supports if supports is not None else [{"point": "a", "ux": "fixed", "uy": "fixed",
+                                                                "rz": "fixed"}]}
+
+
+def test_the_element_limit_keeps_the_first_mode_near_the_closed_form():
+    # the limit's reason: a member cut into 4200 elements still gives the clamped beam's first frequency,
+    # (1.87510407^2 / 2 pi) sqrt(EI / rho A L^4), to 1e-5; the limit (5000) sits just above
+    from workbench.model.assembly import assemble
+    from workbench.model.modal import model_modes
+    from workbench.model.sanity import MAX_ELEMENTS_PER_MEMBER
+
+    frame = parse_frame(_beam(4.2, 0.001))
+    exact = 1.87510407 ** 2 / (2 * math.pi) * math.sqrt(70e9 * 1.28e-9 / (2700.0 * 2.4e-4 * 4.2 ** 4))
+    assert 4200 < MAX_ELEMENTS_PER_MEMBER
+    assert model_modes(assemble(frame), 2).frequency_hz[0] == pytest.approx(exact, rel=1e-5)
+    with pytest.raises(FrameFileError, match=r"members\[0\].*5001 elements.*mm"):
+        parse_frame(_beam(5.001, 0.001))
+
+
+def test_a_free_free_frame_is_one_piece_with_three_rigid_modes():
+    from workbench.model.assembly import assemble
+    from workbench.model.modal import model_modes
+
+    modes = model_modes(assemble(parse_frame(_beam(0.5, 0.01, supports=[]))), 5)
+    assert modes.frequency_hz[:3] == pytest.approx([0, 0, 0], abs=1e-3)
+    assert modes.frequency_hz[3] > 100.0
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda d: d["materials"]["al"].__setitem__("youngs_modulus", 70.0), "materials.al.youngs_modulus"),
+    (lambda d: d["materials"]["al"].__setitem__("density", 2.7), "materials.al.density"),
+    (lambda d: d["sections"]["s"].__setitem__("area", 240.0), "sections.s.area"),
+    (lambda d: d["points"].__setitem__("b", [60.0, 0.0]) or d.__setitem__("element_length", 0.05), "members[0]"),
+])
+def test_values_outside_a_lab_article_warn_naming_the_field(edit, field):
+    from workbench.model.sanity import UnitsWarning
+
+    data = _beam(0.42, 0.01)
+    edit(data)
+    with pytest.warns(UnitsWarning, match=re.escape(field)):
+        parse_frame(data)
+
+
+def test_a_units_warning_is_one_line_and_the_command_still_answers(tmp_path):
+    from conftest import dump_toml, run_cli
+
+    data = _beam(0.42, 0.01)
+    data["materials"]["al"]["density"] = 2.7  # g/cm3
+    data["sensors"] = [{"name": "tip", "point": "b", "dof": "uy"}]
+    data["excitation"] = {"point": "b", "dof": "uy"}
+    (tmp_path / "frame.toml").write_text(dump_toml(data))
+    code, err = run_cli(["modes", str(tmp_path / "frame.toml"), "--out", str(tmp_path / "out")])
+    assert code == 0
+    warned = [line for line in err.splitlines() if "warning" in line]
+    assert len(warned) == 1 and "materials.al.density" in warned[0] and "g/cm3" in warned[0]

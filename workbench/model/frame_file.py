@@ -33,6 +33,7 @@ from workbench.model.frame import (
     locate_point,
     member_length,
 )
+from workbench.model.sanity import check_frame
 
 __all__ = ["read_frame", "parse_frame", "frame_to_toml", "toml_string"]
 
@@ -373,11 +374,13 @@ def parse_frame(data: dict[str, Any], source: str = "<frame>") -> Frame:
     excitation = _excitation(source, data, points)
     sensors = _sensors(top, points)
     ratios = _damping(source, data)
-    return Frame(name=name, points=points, materials=materials, sections=sections,
+    frame = Frame(name=name, points=points, materials=materials, sections=sections,
                  members=members, joints=tuple(joints), supports=tuple(supports),
                  masses=tuple(masses), springs=tuple(springs), excitation=excitation,
                  sensors=tuple(sensors), damping_ratios=ratios, beam_theory=theory,
                  element_length=element_length, description=description, source=source)
+    check_frame(frame)
+    return frame
 
 
 MAX_ELEMENTS = 400_000  # 1.2 million dofs, the largest models the scale targets ask for; far beyond, memory runs out
