@@ -450,6 +450,24 @@ def _(work):
             "--method", "smr1", "--out", str(work / "out")]
 
 
+for _method in ("smr1", "smr2", "adaptive", "pert2"):
+    case(f"propagate: {_method} with a CoV of 1.2", "joints[0].cov")(
+        lambda work, m=_method: ["propagate", str(frame_with(work, lambda d: d["joints"][0].__setitem__("cov", 1.2))),
+                                 "--method", m, "--out", str(work / "out")])
+
+
+def _square(work: Path) -> Path:
+    from test_repeated_eigenvalues import SQUARE
+    path = work / "square.toml"
+    path.write_text(dump_toml(SQUARE))
+    return path
+
+
+@case("propagate: pert2 on a repeated eigenvalue", "modes 2 and 3")
+def _(work):
+    return ["propagate", str(_square(work)), "--method", "pert2", "--count", "4", "--out", str(work / "out")]
+
+
 # ------------------------------------------------------------------ --out (CONTRACTS.md section 3: output rules)
 
 @case("out: the empty string", "--out")

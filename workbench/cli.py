@@ -28,6 +28,7 @@ from workbench.model.matrix_file import is_matrix_model, read_matrix_model
 from workbench.model.matrix_model import matrix_model_modes
 from workbench.model.modal import model_modes
 from workbench.progress import Progress
+from workbench.uq.limits import smr1_cov_warning
 from workbench.uq.smr import propagate
 from workbench.uq.stochastic import joint_model
 
@@ -88,6 +89,8 @@ def _propagate(args: argparse.Namespace, out: OutputSet) -> str:
     joints = joint_model(model.frame)
     if not joints.random.any():
         raise ValueError(f"{args.frame}: joints: no joint has a cov > 0, so nothing varies")
+    if (caution := smr1_cov_warning(model, joints, args.method)) is not None:
+        warnings.warn(caution, stacklevel=1)
     start = time.perf_counter()
     moments = propagate(model, joints, args.method, args.count, args.samples, args.seed, args.workers,
                         progress=_progress() if args.method == "mc" else None)

@@ -26,6 +26,8 @@ __all__ = [
     "solve_modes",
     "model_modes",
     "mac",
+    "DEGENERATE_GAP",
+    "shared_eigenvalues",
     "modal_superposition",
     "modal_frf",
     "add_noise",
@@ -192,6 +194,33 @@ def model_modes(model: Model, count: int = 10, gamma: np.ndarray | None = None, 
     values = strain_energy(model, modes.shapes, gamma)
     order = np.argsort(values, kind="stable")
     return Modes(values[order], modes.shapes[:, order])
+
+
+# Relative eigenvalue gap under which two modes are one repeated eigenvalue. Symmetry-degenerate
+# pairs come out of the eigensolver 1e-12 apart; the closest distinct pairs of the bundled frames
+# sit 1e-2 apart, and at 1e-6 Nelson's derivatives (which scale as 1 / gap) are already meaningless.
+DEGENERATE_GAP = 1e-6
+
+
+def shared_eigenvalues(modes: Modes, count: int) -> list[np.ndarray]:
+    """Groups of two or more modes, among those touching the first ``count``, that share one eigenvalue.
+
+    Returns
+    -------
+    list of increasing 0-based mode indices; a group may run past ``count`` into the extra modes.
+    """
+    lam = modes.eigenvalues
+    scale = max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
+    groups: list[np.ndarray] = []
+    k = 0
+    while k < min(count, lam.size):
+        end = k + 1
+        while end < lam.size and lam[end] - lam[end - 1] <= DEGENERATE_GAP * max(abs(lam[end]), 1e-12 * scale):
+            end += 1
+        if end - k > 1:
+            groups.append(np.arange(k, end))
+        k = end
+    return groups
 
 
 def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import warnings
 
-from workbench.model.frame import Frame, FrameFileError, locate_point, member_length
+from workbench.model.frame import DOF_NAMES, Frame, FrameFileError, locate_point, member_length
 
 __all__ = ["UnitsWarning", "UNIT_RANGES", "MAX_ELEMENTS_PER_MEMBER", "check_frame", "units_warnings"]
 
@@ -54,23 +54,35 @@ def check_frame(frame: Frame) -> None:
 
 
 def _check_one_piece(frame: Frame) -> None:
-    """Members form one connected structure: a floating member would be a free rigid body."""
+    """Each piece of the frame is held: a member joined to nothing held would float as a free rigid body.
+
+    One free-free piece (no supports) is a valid test set-up; two cantilevers clamped apart are too.
+    """
     on_member = {m.name: {p for p, xy in frame.points.items() if locate_point(frame.points, m, xy) is not None}
                  for m in frame.members}
-    first = frame.members[0].name
-    reached, todo = {first}, [first]
-    while todo:  # breadth-first over members that share a point
-        here = on_member[todo.pop()]
-        for m in frame.members:
-            if m.name not in reached and on_member[m.name] & here:
-                reached.add(m.name)
-                todo.append(m.name)
-    for i, m in enumerate(frame.members):
-        if m.name not in reached:
+    pieces: list[set[str]] = []
+    for m in frame.members:
+        if any(m.name in piece for piece in pieces):
+            continue
+        piece, todo = {m.name}, [m.name]
+        while todo:  # breadth-first over members that share a point
+            here = on_member[todo.pop()]
+            for other in frame.members:
+                if other.name not in piece and on_member[other.name] & here:
+                    piece.add(other.name)
+                    todo.append(other.name)
+        pieces.append(piece)
+    if len(pieces) == 1:
+        return
+    held = {s.point for s in frame.supports if any(s.stiffness(d) is not None for d in DOF_NAMES)}
+    held |= {s.point for s in frame.springs}
+    for piece in pieces:
+        if not any(on_member[name] & held for name in piece):
+            i, m = next((i, m) for i, m in enumerate(frame.members) if m.name in piece)
             raise FrameFileError(
                 f"{frame.source}: members[{i}]: member {m.name!r} ({m.start} to {m.end}) shares no point with "
-                f"member {first!r} and the members joined to it; a floating member has no stiffness "
-                "holding it to the frame (members connect only at named points)")
+                f"the rest of the frame and has no support or spring: it would float as a free rigid body "
+                "(members connect only at named points)")
 
 
 def _check_elements_per_member(frame: Frame) -> None:

@@ -49,8 +49,10 @@ import scipy.sparse.linalg as spla
 from scipy.integrate import quad
 
 from workbench.model.assembly import Model, joint_energies
-from workbench.model.modal import Modes, model_modes
+from workbench.model.modal import Modes, model_modes, shared_eigenvalues
 from workbench.progress import Progress
+from workbench.uq.degenerate import cluster_moments, describe
+from workbench.uq.limits import check_cov
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule, monte_carlo
 
 __all__ = [
@@ -230,10 +232,34 @@ def smr1(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities 
             constant = sens.rest[k] + sens.joints[k, ~r].sum()
             m, s = sqrt_moments(constant, sens.joints[k, r], joints.shape[r], joints.scale[r])
             mean[k], std[k] = m / TWO_PI, s / TWO_PI
+    _on_clusters(model, joints, sens, count, mean, std)
     lam_mean, lam_std = eigenvalue_moments(sens, joints)
-    return FrequencyMoments(mean, std, "smr1", sens.modes.frequency_hz[:count],
-                            proximity=proximity_factor(lam_mean, lam_std)[:count],
-                            dispersion=dispersion(sens, joints)[:count])
+    return _finite(FrequencyMoments(mean, std, "smr1", sens.modes.frequency_hz[:count],
+                                    proximity=proximity_factor(lam_mean, lam_std)[:count],
+                                    dispersion=dispersion(sens, joints)[:count]))
+
+
+def _on_clusters(model: Model, joints: JointModel, sens: Sensitivities, count: int, mean: np.ndarray,
+                 std: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Overwrite, in place, the moments of modes sharing an eigenvalue with SMR on their subspace
+    (`workbench.uq.degenerate`); returns the mask of those modes among the first ``count``.
+    """
+    shared = np.zeros(count, bool)
+    for group in shared_eigenvalues(sens.modes, count):
+        m, s = cluster_moments(model, sens.modes, group, joints, seed)
+        inside = group < count
+        mean[group[inside]], std[group[inside]] = m[inside], s[inside]
+        shared[group[inside]] = True
+    return shared
+
+
+def _finite(result: FrequencyMoments) -> FrequencyMoments:
+    """The last guard: a moment that is not a finite number is an error, never a number written out."""
+    bad = np.flatnonzero(~(np.isfinite(result.mean_hz) & np.isfinite(result.std_hz)))
+    if bad.size:
+        raise ValueError(f"method {result.method}: the moments of mode(s) {', '.join(str(k + 1) for k in bad)} "
+                         "are not finite numbers; use --method mc")
+    return result
 
 
 def eigenvector_derivatives(model: Model, sens: Sensitivities, modes: np.ndarray,
@@ -323,11 +349,14 @@ def smr2(model: Model, joints: JointModel, count: int = 10, rayleigh: bool = Tru
     """
     _check(model, joints)
     sens = sens or sensitivities(model, count)
-    mean, std = _smr2_modes(model, joints, sens, np.arange(count), rayleigh, seed)
+    mean, std = np.empty(count), np.empty(count)
+    shared = _on_clusters(model, joints, sens, count, mean, std, seed)
+    single = np.flatnonzero(~shared)  # Nelson's derivatives exist only for distinct eigenvalues
+    mean[single], std[single] = _smr2_modes(model, joints, sens, single, rayleigh, seed)
     lam_mean, lam_std = eigenvalue_moments(sens, joints)
-    return FrequencyMoments(mean, std, "smr2", sens.modes.frequency_hz[:count],
-                            proximity=proximity_factor(lam_mean, lam_std)[:count],
-                            dispersion=dispersion(sens, joints)[:count], refined=np.ones(count, bool))
+    return _finite(FrequencyMoments(mean, std, "smr2", sens.modes.frequency_hz[:count],
+                                    proximity=proximity_factor(lam_mean, lam_std)[:count],
+                                    dispersion=dispersion(sens, joints)[:count], refined=~shared))
 
 
 def adaptive(model: Model, joints: JointModel, count: int = 10, proximity_threshold: float = PROXIMITY_THRESHOLD,
@@ -340,13 +369,16 @@ def adaptive(model: Model, joints: JointModel, count: int = 10, proximity_thresh
     sens.require_nominal()
     first = smr1(model, joints, count, sens)
     assert first.proximity is not None and first.dispersion is not None  # smr1 always fills both
-    refined = (first.proximity < proximity_threshold) | (first.dispersion > dispersion_threshold)
+    shared = np.zeros(count, bool)
+    for group in shared_eigenvalues(sens.modes, count):  # smr1 already took them on their subspace
+        shared[group[group < count]] = True
+    refined = ((first.proximity < proximity_threshold) | (first.dispersion > dispersion_threshold)) & ~shared
     mean, std = first.mean_hz.copy(), first.std_hz.copy()
     if np.any(refined):
         modes = np.flatnonzero(refined)
         mean[modes], std[modes] = _smr2_modes(model, joints, sens, modes, True, seed)
-    return FrequencyMoments(mean, std, "adaptive", first.nominal_hz, proximity=first.proximity,
-                            dispersion=first.dispersion, refined=refined)
+    return _finite(FrequencyMoments(mean, std, "adaptive", first.nominal_hz, proximity=first.proximity,
+                                    dispersion=first.dispersion, refined=refined))
 
 
 def pert2(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
@@ -364,6 +396,10 @@ def pert2(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities
     f0 = np.sqrt(lam) / TWO_PI
     if r.size == 0:
         return FrequencyMoments(f0.copy(), np.zeros(count), "pert2", f0)
+    for group in shared_eigenvalues(sens.modes, count):
+        raise ValueError(f"method pert2: {describe(sens.modes, group)} share one eigenvalue, where perturbation "
+                         "derivatives do not exist; use --method smr1, smr2, adaptive (SMR on the shared "
+                         "subspace) or mc")
     derivatives = eigenvector_derivatives(model, sens, np.arange(count), r)
     mean, std = np.empty(count), np.empty(count)
     for k in range(count):
@@ -377,7 +413,7 @@ def pert2(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities
         cov2 = joints.cov[r] ** 2
         mean[k] = f0[k] + 0.5 * d2f @ cov2
         std[k] = np.sqrt(df**2 @ cov2)
-    return FrequencyMoments(mean, std, "pert2", f0)
+    return _finite(FrequencyMoments(mean, std, "pert2", f0))
 
 
 METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
@@ -385,7 +421,11 @@ METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
 
 def propagate(model: Model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
               workers: int = 1, progress: Progress | None = None) -> FrequencyMoments:
-    """Frequency moments by ``method`` (one of `METHODS`); ``samples`` and ``workers`` are for ``mc``."""
+    """Frequency moments by ``method`` (one of `METHODS`); ``samples`` and ``workers`` are for ``mc``.
+
+    Every method but ``mc`` refuses joints whose CoV is above `workbench.uq.limits.COV_LIMIT`.
+    """
+    check_cov(model, joints, method)
     if method == "smr1":
         return smr1(model, joints, count)
     if method == "smr2":

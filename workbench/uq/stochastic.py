@@ -21,7 +21,7 @@ from scipy.optimize import linear_sum_assignment
 from threadpoolctl import threadpool_limits
 
 from workbench.model.assembly import Model
-from workbench.model.modal import Modes, model_modes, solve_modes
+from workbench.model.modal import Modes, model_modes, shared_eigenvalues, solve_modes
 from workbench.progress import Progress, report
 
 __all__ = ["JointModel", "joint_model", "FrequencyMoments", "MonteCarloResult", "monte_carlo", "track_modes",
@@ -223,9 +223,16 @@ def tracked_frequencies(model: Model, nominal: Modes, gammas: np.ndarray,
     k_count = min(count + extra_modes, model.size - 2)
     freqs = np.empty((len(gammas), count))
     worst = np.empty(len(gammas))
+    # nominal modes sharing an eigenvalue have an arbitrary basis: their split partners are told
+    # apart by frequency (lowest first, as SMR on the shared subspace orders them), not by MAC
+    shared = [g[g < count] for g in shared_eigenvalues(nominal, count)]
     for s, gamma in enumerate(gammas):
         modes = solve_modes(model.stiffness(gamma), model.mass, k_count)
         index, mac = track_modes(nominal, modes, model.mass)
+        for group in shared:
+            index[group] = np.sort(index[group])  # candidates come sorted by frequency
+            overlap = nominal.shapes[:, group].T @ (model.mass @ modes.shapes[:, index[group]])
+            mac[group] = (overlap**2).sum(axis=0)  # each partner's share inside the shared subspace
         freqs[s] = modes.frequency_hz[index]
         worst[s] = mac.min()
     return freqs, worst
