@@ -172,6 +172,55 @@ def test_identify_moments_writes_the_contract_record(tmp_path):
     assert record["modes_used"] == list(range(1, 10))
 
 
+def test_an_estimate_at_its_bound_fails_unless_allowed_and_then_is_flagged(tmp_path, capsys):
+    # frequencies scattered 40 times more than Table 3's: no CoV inside the search interval explains them
+    import json
+    import shutil
+
+    from conftest import REPO
+
+    campaign = tmp_path / "scattered"
+    shutil.copytree(REPO / "campaigns" / "paper_table3_one_bolt_vertical", campaign)
+    lines = (campaign / "moments.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[header.index("std_hz")] = repr(40 * float(row[header.index("std_hz")]))
+    (campaign / "moments.csv").write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    before = {p.name: p.read_bytes() for p in campaign.iterdir()}
+    out = tmp_path / "id"
+    assert main(["identify", str(campaign), "--method", "moments", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "joint 'A'" in err and "upper bound" in err and "--allow-bounds" in err
+    assert not out.exists()
+    assert main(["identify", str(campaign), "--method", "moments", "--out", str(out), "--allow-bounds"]) == 0
+    joint = json.loads((out / "identification.json").read_text())["joints"]["A"]
+    assert joint["at_bound"] is True and joint["cov"] == pytest.approx(0.4, rel=0.01)
+    assert "warning" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in campaign.iterdir()} == before
+
+
+def test_the_bound_rule_reads_the_posterior_boxes_too():
+    from types import SimpleNamespace
+
+    from conftest import REPO
+
+    from workbench.identify.likelihood import COV_BOUNDS, MODULUS_BOUNDS_PA
+    from workbench.identify.record import bound_failures, identification_record
+    from workbench.model.frame_file import read_frame
+
+    frame = read_frame(REPO / "frames" / "two_bolt.toml")
+    first, second = frame.joint_names[:2]
+    entries = {first: {"youngs_modulus": 1.005e8, "cov": 0.1}, second: {"youngs_modulus": 3e10, "cov": 0.1}}
+    entries.update({name: {"youngs_modulus": 3e10, "cov": 0.1} for name in frame.joint_names[2:]})
+    fit = SimpleNamespace(joint_records=lambda: {k: dict(v) for k, v in entries.items()},
+                          mean_box_pa=MODULUS_BOUNDS_PA, cov_box=COV_BOUNDS)
+    record = identification_record("c", "bayes", frame, fit, [1, 2], 1.0)
+    assert record["joints"][first]["at_bound"] is True and "at_bound" not in record["joints"][second]
+    [failure] = bound_failures(record, fit)
+    assert repr(first) in failure and "lower bound 1e+08 Pa" in failure
+
+
 def test_identify_bayes_refuses_published_moments(tmp_path, capsys):
     from conftest import REPO
 

@@ -192,6 +192,22 @@ def test_bad_files_are_rejected_with_one_line(tmp_path, case):
     assert "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize("binary", [False, True], ids=["ascii", "binary"])
+def test_a_file_cut_anywhere_inside_a_dataset_is_refused(tmp_path, rng, binary):
+    # pyuff drops a dataset cut short without a word: 35 of 40 cut points imported fewer FRFs, exit 0
+    campaign = random_campaign(rng, axis=AXES["uneven"])
+    whole = export_frfs(campaign, tmp_path / "whole.uff", binary=binary)
+    data = whole.read_bytes()
+    rows = len(import_frfs(whole, campaign.frame))
+    assert rows == len(campaign.frf)
+    cut = tmp_path / "cut.uff"
+    for end in np.linspace(0.02, 0.998, 40) * len(data):
+        cut.write_bytes(data[:int(end)])
+        with pytest.raises(ValueError, match="cut.uff") as err:
+            import_frfs(cut, campaign.frame)
+        assert "\n" not in str(err.value)
+
+
 def test_inconsistent_quantity_and_nan_are_rejected(tmp_path):
     frame = portal_frame()
     points = list(frame.points)

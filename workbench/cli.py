@@ -20,7 +20,7 @@ from workbench import __version__
 from workbench.identify.bayes import Posterior, bayes_identify
 from workbench.identify.data import check_moments
 from workbench.identify.moments import MomentFit, moment_matching
-from workbench.identify.record import identification_record
+from workbench.identify.record import bound_failures, identification_record
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
@@ -162,6 +162,13 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
         files[POSTERIOR_FILE] = posterior_netcdf(posterior)  # through write_outputs below: all files or none
     wall = time.perf_counter() - start
     record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
+    failures = bound_failures(record, fit)
+    if failures and not args.allow_bounds:
+        raise ValueError(f"{args.campaign}: failed identification, {failures[0]}"
+                         + (f" (and {len(failures) - 1} more joints)" if len(failures) > 1 else "")
+                         + ": the data do not place it; --allow-bounds writes it flagged \"at_bound\": true")
+    for failure in failures:
+        warnings.warn(f"{args.campaign}: {failure} (written with \"at_bound\": true)", stacklevel=1)
     files["identification.json"] = json_text(record)
     out.commit(files)
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
@@ -209,7 +216,8 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
     def say(message: str) -> None:
         print(f"diagnose: {message}", file=sys.stderr, flush=True)
 
-    done = diagnose_campaign(args.campaign, args.count, say)
+    # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
+    done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None)
     record, campaign = done.record, done.campaign
     page = diagnosis_html(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
     out.commit({"diagnosis.json": json_text(record), "index.html": page})
@@ -260,6 +268,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--method", required=True, choices=["moments", "bayes"])
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
+    p.add_argument("--allow-bounds", action="store_true",
+                   help="write an estimate within 1 %% of its search interval's bound (flagged \"at_bound\": true) "
+                        "instead of failing")
 
     p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate,
                 ("moments.csv", "run.json"))

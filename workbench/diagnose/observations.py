@@ -104,6 +104,12 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
     """
     n_tests = measured.frequency_hz.shape[0]
     amplitude = measured.amplitude if measured.amplitude is not None else np.ones(n_tests)
+    levels = np.unique(amplitude)
+    if measured.published_std_hz is None and not _test_covariance(measured.frequency_hz, amplitude, levels)[1].any():
+        # with the floor alone as the error, any model error reads as a gap far beyond scatter
+        raise ValueError(f"{measured.source}: tests: {n_tests} test(s) over {levels.size} excitation level(s) leave "
+                         "no degree of freedom to measure the test-to-test scatter, so a gap cannot be told from "
+                         "chance; diagnose needs a repeated test (or std_hz in moments.csv)")
     levels, f, f_se, f_cov = _condition_means(measured.frequency_hz, amplitude, relative_floor,
                                               measured.published_std_hz, measured.tests_count)
     d = d_se = None

@@ -211,6 +211,15 @@ class Posterior:
         """R-hat below 1.05 and at least 20 autocorrelation times of production for every parameter."""
         return bool(np.all(self.rhat < 1.05) and np.all(self.steps > 20 * self.autocorr_time))
 
+    @property
+    def mean_box_pa(self) -> tuple[float, float]:
+        """The prior's support of the mean moduli, Pa: the search interval of the contract's bound rule."""
+        return MODULUS_BOUNDS_PA
+
+    @property
+    def cov_box(self) -> tuple[float, float]:
+        return COV_BOUNDS
+
     def joint_records(self) -> dict[str, dict[str, object]]:
         """identification.json's ``joints`` (CONTRACTS.md section 3): each joint gets its group's values."""
         out = {}

@@ -38,6 +38,7 @@ from workbench.identify.nominal import NominalFit, nominal_fit
 from workbench.model.assembly import Model
 from workbench.model.joints import model_at_moduli
 from workbench.uq import smr
+from workbench.uq.limits import COV_LIMIT
 from workbench.uq.stochastic import FrequencyMoments, JointModel
 
 __all__ = ["DEFAULT_START_COV", "MomentFit", "mean_residuals", "cov_residuals", "moment_matching"]
@@ -76,6 +77,7 @@ class MomentFit:
         (the nominal fit's eigen-solves are in ``nominal.evaluations``).
     seed : seed of the bootstrap behind the intervals (None without intervals).
     wall_time_s : s, nominal fit included.
+    mean_box_pa, cov_box : the search intervals of the means (Pa) and the CoVs.
     """
 
     groups: JointGroups
@@ -101,6 +103,8 @@ class MomentFit:
     evaluations: int
     seed: int | None
     wall_time_s: float
+    mean_box_pa: tuple[float, float] = (1e8, 1e12)
+    cov_box: tuple[float, float] = (1e-3, COV_LIMIT)
 
 
 class _SMRForward:
@@ -253,7 +257,7 @@ def _two_steps(model: Model, groups: JointGroups, forward: _SMRForward, measured
 
 def moment_matching(model: Model, measured: MeasuredModes, groups: JointGroups | None = None,
                     start: tuple[Values | None, Values | None] | None = None,
-                    bounds_pa: tuple[float, float] = (1e8, 1e12), cov_bounds: tuple[float, float] = (1e-3, 0.6),
+                    bounds_pa: tuple[float, float] = (1e8, 1e12), cov_bounds: tuple[float, float] = (1e-3, COV_LIMIT),
                     method: str = "adaptive", sweeps: int = 10,
                     pairing: str = "order", measured_shapes: np.ndarray | None = None, bootstrap: int = 2000,
                     seed: int = 0) -> MomentFit:
@@ -267,7 +271,8 @@ def moment_matching(model: Model, measured: MeasuredModes, groups: JointGroups |
     groups : joints sharing one stochastic model (default: the frame's groups).
     start : ``(mean_pa, cov)`` per group, either may be None: the nominal fit's start modulus
         (default: the frame file's) and the CoV held in the first step 1 (default ``DEFAULT_START_COV``).
-    bounds_pa, cov_bounds : boxes of the group means (Pa) and CoVs.
+    bounds_pa, cov_bounds : boxes of the group means (Pa) and CoVs; the CoVs stop at
+        `workbench.uq.limits.COV_LIMIT`, beyond which the SMR forward model is not accurate.
     method : the SMR forward model: ``"adaptive"`` (default), ``"smr1"`` or ``"smr2"``.
     sweeps : at most this many step 1 + step 2 passes; stops earlier once a pass moves the means
         by less than 1e-5 and the CoVs by less than 1e-4 (relative).
@@ -329,4 +334,4 @@ def moment_matching(model: Model, measured: MeasuredModes, groups: JointGroups |
     return MomentFit(groups, np.exp(log_mean), np.exp(log_cov), nominal.modes, nominal.model_modes, target_mean,
                      target_delta, mean_hz, std_hz, delta, res_mean, res_delta, float(res_mean @ res_mean),
                      float(res_delta @ res_delta), mean_ci, cov_ci, nominal, method, done, converged, evaluations,
-                     used_seed, time.perf_counter() - start_time)
+                     used_seed, time.perf_counter() - start_time, (m_lo, m_hi), (c_lo, c_hi))

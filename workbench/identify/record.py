@@ -7,7 +7,10 @@ from typing import Any
 
 from workbench.model.frame import Frame
 
-__all__ = ["identification_record"]
+__all__ = ["BOUND_TOLERANCE", "identification_record", "bound_failures"]
+
+# CONTRACTS.md section 3: an estimate within 1 % of a bound of its search interval is a failed identification
+BOUND_TOLERANCE = 0.01
 
 
 def identification_record(campaign_name: str, method: str, frame: Frame, fit: Any, modes_used: Iterable[int],
@@ -47,5 +50,30 @@ def identification_record(campaign_name: str, method: str, frame: Frame, fit: An
     if list(joints) != list(frame.joint_names):
         raise ValueError(f"{frame.source}: the fit's joints {list(joints)} are not the frame's "
                          f"{list(frame.joint_names)}")
+    for entry in joints.values():
+        if _at_bounds(entry, fit):
+            entry["at_bound"] = True
     return {"campaign": str(campaign_name), "method": str(method), "joints": joints,
             "modes_used": [int(m) for m in modes_used], "wall_time_s": float(wall_time_s)}
+
+
+def _at_bounds(entry: dict, fit: Any) -> list[str]:
+    """``youngs_modulus at the lower bound 1e+08 Pa``-like phrases for an entry's estimates on their bounds."""
+    hits = []
+    for key, box, unit in (("youngs_modulus", getattr(fit, "mean_box_pa", None), " Pa"),
+                           ("cov", getattr(fit, "cov_box", None), "")):
+        if box is None:
+            continue
+        lo, hi = box
+        value = float(entry[key])
+        if value <= lo * (1 + BOUND_TOLERANCE):
+            hits.append(f"{key} {value:.4g}{unit} is within 1 % of the search interval's lower bound {lo:g}{unit}")
+        elif value >= hi * (1 - BOUND_TOLERANCE):
+            hits.append(f"{key} {value:.4g}{unit} is within 1 % of the search interval's upper bound {hi:g}{unit}")
+    return hits
+
+
+def bound_failures(record: dict, fit: Any) -> list[str]:
+    """One message per joint whose estimate sits on a bound of its search interval (CONTRACTS.md section 3)."""
+    return [f"joint {name!r}: {'; '.join(_at_bounds(entry, fit))}"
+            for name, entry in record["joints"].items() if entry.get("at_bound")]

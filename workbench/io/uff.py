@@ -51,6 +51,7 @@ campaign tables (STYLE.md layering).
 from __future__ import annotations
 
 import math
+import re
 import tempfile
 import warnings
 from collections.abc import Callable
@@ -199,6 +200,25 @@ def _uff_bytes(datasets: list[dict[str, Any]]) -> bytes:
         return scratch_file.read_bytes()
 
 
+_DATASET_58_START = re.compile(rb"(?:^|\n)[ \t]*-1[ \t]*\r?\n[ \t]*58")
+
+
+def _check_complete(path: Path, sets: list[dict[str, Any]]) -> None:
+    """Refuse a file cut inside a dataset: pyuff drops such a dataset without a word.
+
+    Every dataset, ASCII or binary (58b), opens with a ``-1`` line and closes with ``-1``: a file that
+    does not end with one, or in which more datasets 58 open than pyuff could read, was cut short.
+    """
+    data = path.read_bytes()
+    if not data.lstrip().startswith(b"-1"):
+        return  # not a universal file at all: said later, when no dataset 58 is found
+    opened = len(_DATASET_58_START.findall(data))
+    read = sum(1 for d in sets if d.get("type") == 58)
+    if not data.rstrip().endswith(b"-1") or opened > read:
+        raise ValueError(f"{path}: truncated or damaged: {opened} datasets 58 begin in the file, {read} could be "
+                         "read whole; export it again or copy it whole")
+
+
 def _read_datasets(path: Path, header_only: bool = False) -> list[dict[str, Any]]:
     if not path.is_file():
         raise ValueError(f"{path}: no such UFF file")
@@ -211,6 +231,7 @@ def _read_datasets(path: Path, header_only: bool = False) -> list[dict[str, Any]
         raise ValueError(f"{path}: cannot be read as a universal file: {' '.join(str(exc).split())}") from None
     if isinstance(sets, dict):
         sets = [sets]
+    _check_complete(path, list(sets))
     return list(sets)
 
 

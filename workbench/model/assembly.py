@@ -19,6 +19,7 @@ import scipy.sparse as sp
 
 from workbench.model import elements
 from workbench.model.frame import DOF_NAMES, Frame, locate_point, member_length
+from workbench.model.pattern import JointPattern
 
 __all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "element_energies", "joint_energies",
            "strain_energy"]
@@ -99,43 +100,13 @@ class Model:
     spring_stiffness: np.ndarray
     stiffness_geometric: sp.csr_matrix
     _position: np.ndarray = field(init=False, repr=False, compare=False)
-    _pattern: tuple = field(init=False, repr=False, compare=False)
+    _pattern: JointPattern = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         position = np.full(self.mesh.dof_count, -1)
         position[self.free_dofs] = np.arange(self.free_dofs.size)
         object.__setattr__(self, "_position", position)
-        # K(gamma) on one sparsity pattern: data = rest + J @ gamma, one sparse product per call
-        # instead of a sparse sum per joint (Monte Carlo calls it for every sample).
-        def structure(a: sp.csr_matrix) -> sp.csr_matrix:
-            return sp.csr_matrix((np.ones(a.nnz), a.indices, a.indptr), shape=a.shape)
-
-        union = structure(self.stiffness_rest)
-        for kj in self.stiffness_joints:
-            union = union + structure(kj)
-        union = union.tocsr()
-        union.sum_duplicates()
-        union.sort_indices()
-        n = union.shape[0]
-        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(union.indptr)) * n + union.indices
-
-        def positions(a: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
-            a = a.tocoo()  # each entry's place in the union's data, by its sorted (row, col) key
-            return np.searchsorted(keys, a.row.astype(np.int64) * n + a.col), a.data
-
-        base = np.zeros(union.nnz)
-        idx, val = positions(self.stiffness_rest)
-        np.add.at(base, idx, val)
-        rows, cols, vals = [], [], []
-        for j, kj in enumerate(self.stiffness_joints):
-            idx, val = positions(kj)
-            rows.append(idx)
-            cols.append(np.full(idx.size, j))
-            vals.append(val)
-        joints = sp.csr_matrix((np.concatenate(vals) if vals else [], (np.concatenate(rows) if rows else [],
-                                np.concatenate(cols) if cols else [])),
-                               shape=(union.nnz, len(self.stiffness_joints)))
-        object.__setattr__(self, "_pattern", (union.indices, union.indptr, base, joints))
+        object.__setattr__(self, "_pattern", JointPattern.of(self.stiffness_rest, tuple(self.stiffness_joints)))
 
     @property
     def size(self) -> int:
@@ -147,16 +118,7 @@ class Model:
 
     def stiffness(self, gamma: np.ndarray | None = None) -> sp.csr_matrix:
         """``K(gamma) = K_rest + sum_j gamma_j K_j`` (eq. 4); ``gamma = None`` means all ones."""
-        if gamma is None:
-            gamma = np.ones(len(self.stiffness_joints))
-        gamma = np.asarray(gamma, float)
-        if gamma.shape != (len(self.stiffness_joints),):
-            raise ValueError(f"gamma: expected {len(self.stiffness_joints)} values (one per joint "
-                             f"{list(self.joint_names)}), got shape {gamma.shape}")
-        if not np.all(np.isfinite(gamma)) or np.any(gamma <= 0):
-            raise ValueError(f"gamma: joint moduli must be finite and positive, got {gamma}")
-        indices, indptr, base, joints = self._pattern
-        return sp.csr_matrix((base + joints @ gamma, indices, indptr), shape=self.stiffness_rest.shape)
+        return self._pattern.stiffness(gamma, self.joint_names)
 
     def dof(self, point: str, dof: str) -> int:
         """Index in the free-dof system of ``dof`` (ux, uy, rz) at the named ``point``."""

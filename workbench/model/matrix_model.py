@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 from workbench.model.frame import DEFAULT_DAMPING_RATIO
 from workbench.model.modal import Modes, solve_modes
+from workbench.model.pattern import JointPattern
 
 __all__ = ["COMPONENTS", "DofTable", "MatrixJoint", "MatrixSensor", "MatrixModel", "matrix_model_modes"]
 
@@ -124,7 +125,7 @@ class MatrixModel:
     description: str = ""
     format: str = "matrix-market"
     source: str = "<matrix model>"
-    _pattern: tuple = field(init=False, repr=False)
+    _pattern: JointPattern = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = self.dofs.size
@@ -135,7 +136,7 @@ class MatrixModel:
         if len(self.joints) != len(self.stiffness_joints):
             raise ValueError(f"MatrixModel: {len(self.joints)} joints but {len(self.stiffness_joints)} "
                              "joint stiffnesses")
-        object.__setattr__(self, "_pattern", _union_pattern(self.stiffness_rest, self.stiffness_joints))
+        object.__setattr__(self, "_pattern", JointPattern.of(self.stiffness_rest, self.stiffness_joints))
 
     @property
     def size(self) -> int:
@@ -176,49 +177,7 @@ class MatrixModel:
         ----------
         gamma : (n_joints,) normalised joint parameters ``Y_j / E[Y_j]``, finite and positive.
         """
-        count = len(self.stiffness_joints)
-        gamma = np.ones(count) if gamma is None else np.asarray(gamma, float)
-        if gamma.shape != (count,):
-            raise ValueError(f"gamma: expected {count} values (one per joint {list(self.joint_names)}), "
-                             f"got shape {gamma.shape}")
-        if not np.all(np.isfinite(gamma)) or np.any(gamma <= 0):
-            raise ValueError(f"gamma: joint parameters must be finite and positive, got {gamma}")
-        indices, indptr, base, joints = self._pattern
-        return sp.csr_matrix((base + joints @ gamma, indices, indptr), shape=self.stiffness_rest.shape)
-
-
-def _union_pattern(rest: sp.csr_matrix, joints: tuple[sp.csr_matrix, ...]) -> tuple:
-    """K(gamma) on one sparsity pattern: ``data = base + J @ gamma``, one sparse product per call
-    instead of a sparse sum per joint (Monte Carlo calls `MatrixModel.stiffness` for every sample).
-    """
-    def structure(a: sp.csr_matrix) -> sp.csr_matrix:
-        return sp.csr_matrix((np.ones(a.nnz), a.indices[:a.nnz], a.indptr), shape=a.shape)
-
-    union = structure(rest)
-    for kj in joints:
-        union = union + structure(kj)
-    union = sp.csr_matrix(union)
-    union.sum_duplicates()
-    union.sort_indices()
-    n = union.shape[0]
-    keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(union.indptr)) * n + union.indices
-
-    def positions(a: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
-        a = a.tocoo()  # each entry's place in the union's data, by its sorted (row, col) key
-        return np.searchsorted(keys, a.row.astype(np.int64) * n + a.col), a.data
-
-    base = np.zeros(union.nnz)
-    idx, val = positions(rest)
-    np.add.at(base, idx, val)
-    rows, cols, vals = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)], [np.zeros(0)]
-    for j, kj in enumerate(joints):
-        idx, val = positions(kj)
-        rows.append(idx)
-        cols.append(np.full(idx.size, j))
-        vals.append(val)
-    weights = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                            shape=(union.nnz, len(joints)))
-    return union.indices, union.indptr, base, weights
+        return self._pattern.stiffness(gamma, self.joint_names)
 
 
 def matrix_model_modes(model: MatrixModel, count: int = 10, gamma: np.ndarray | None = None,
