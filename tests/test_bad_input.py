@@ -6,6 +6,10 @@ exporter would, runs the command line, and checks: exit 2; one line on standard 
 expected fragment (the file, field or option, and the problem); no input file changed and nothing
 written (the lock file of ``--out`` aside). The fragments were written from the contract's wording
 before the cases were run, then adjusted only where the message said the same thing in other words.
+
+The `--out` cases here include the lock of a concurrent run; the runs killed mid-write (SIGKILL during
+the commit and at random moments, then checked to hold the old set or the new one) and the two truly
+concurrent processes live in ``tests/test_outputs_safety.py``, because they need real processes.
 """
 
 from __future__ import annotations
