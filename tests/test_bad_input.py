@@ -493,6 +493,69 @@ def _(work):
     return ["propagate", str(_square(work)), "--method", "pert2", "--count", "4", "--out", str(work / "out")]
 
 
+# ------------------------------------------------------------------ import (UFF 58 and CSV exports)
+
+def _uff(work: Path, binary: bool = True) -> Path:
+    """The pristine campaign's FRFs as one universal file (the workbench's own export)."""
+    from workbench.io.campaign import load_campaign
+    from workbench.io.uff import export_frfs
+    return export_frfs(load_campaign(_PRISTINE[0]), work / "lab.uff", binary=binary)
+
+
+def _import(work: Path, *files: Path, extra: tuple[str, ...] = ()) -> list[str]:
+    return ["import", *map(str, files), "--frame", str(_PRISTINE[0] / "frame.toml"), *extra,
+            "--out", str(work / "out")]
+
+
+for _binary in (False, True):
+    case(f"uff: {'binary' if _binary else 'ASCII'} file cut inside a dataset", "truncated")(
+        lambda work, b=_binary: _import(work, _cut(_uff(work, b))))
+
+
+def _cut(path: Path) -> Path:
+    data = path.read_bytes()
+    path.write_bytes(data[:int(len(data) * 0.6)])
+    return path
+
+
+@case("uff: not a universal file", "no dataset 58")
+def _(work):
+    (work / "notes.uff").write_text("measured on Tuesday\n")
+    return _import(work, work / "notes.uff")
+
+
+@case("import: unknown file type", ".xlsx")
+def _(work):
+    (work / "frf.xlsx").write_bytes(b"PK")
+    return _import(work, work / "frf.xlsx")
+
+
+@case("import: the same test and sensor in two files", "already read")
+def _(work):
+    first = _uff(work)
+    second = work / "again.uff"
+    shutil.copy(first, second)
+    return _import(work, first, second)
+
+
+@case("import: CSV without --quantity", "--quantity")
+def _(work):
+    (work / "t1.csv").write_text("sensor,frequency_hz,real,imag\ns1,1.0,0.1,0.2\ns1,2.0,0.2,0.1\n")
+    return _import(work, work / "t1.csv")
+
+
+@case("import: CSV of a sensor the frame lacks", "'s9'")
+def _(work):
+    (work / "t1.csv").write_text("sensor,frequency_hz,real,imag\ns9,1.0,0.1,0.2\ns9,2.0,0.2,0.1\n")
+    return _import(work, work / "t1.csv", extra=("--quantity", "accelerance"))
+
+
+@case("import: design without a test of the files", "no row")
+def _(work):
+    (work / "design.csv").write_text("test_id,bolt_A\n1,1\n")
+    return _import(work, _uff(work), extra=("--design", str(work / "design.csv")))
+
+
 # ------------------------------------------------------------------ --out (CONTRACTS.md section 3: output rules)
 
 @case("out: the empty string", "--out")

@@ -120,7 +120,9 @@ def write_foreign(path, frame, nodes, quantity_code=12, directions=None, **overr
         h = (k + 1) / (100.0 - f**2 + 2j * f)
         dset = pyuff.prepare_58(binary=0, func_type=4, rsp_node=node,
                                 rsp_dir=(directions or {}).get(sensor, DIRECTION_CODES[s.dof]),
-                                ref_node=9001, ref_dir=1, abscissa_spacing=1, abscissa_spec_data_type=18,
+                                ref_node=list(frame.points).index(frame.excitation.point) + 1,
+                                ref_dir=DIRECTION_CODES[frame.excitation.dof], abscissa_spacing=1,
+                                abscissa_spec_data_type=18,
                                 ordinate_spec_data_type=quantity_code, orddenom_spec_data_type=13,
                                 data=h, x=f, id1=f"Point{node}")
         dset.update(override)
@@ -295,3 +297,51 @@ def test_measured_campaign_round_trips_through_uff(tmp_path):
     assert {d["abscissa_spacing"] for d in pyuff.UFF(str(path)).read_sets(header_only=True)} == {1}
     pd.testing.assert_frame_equal(import_frfs(path, campaign.frame), campaign.frf, check_exact=True)
     assert uff_quantity(path) == ("accelerance", "voltage")
+
+
+def _numbered_frame():
+    """The portal with points named by UFF node numbers, as an FE export would name them."""
+    frame = portal_frame()
+    names = {"base_left": "10", "drive": "11", "top_left": "12", "mid_beam": "13", "top_right": "14",
+             "base_right": "15"}
+    data = {"name": "numbered portal", "materials": {"al": {"youngs_modulus": 70e9, "density": 2700.0}},
+            "sections": {"bar": {"area": 2.4e-4, "second_moment": 1.28e-9}},
+            "points": {names[p]: list(xy) for p, xy in frame.points.items()},
+            "members": [{"name": m.name, "start": names[m.start], "end": names[m.end], "material": "al",
+                         "section": "bar"} for m in frame.members],
+            "supports": [{"point": names[s.point], "ux": "fixed", "uy": "fixed", "rz": "fixed"}
+                         for s in frame.supports],
+            "excitation": {"point": "11", "dof": "ux"},
+            "sensors": [{"name": s.name, "point": names[s.point], "dof": s.dof} for s in frame.sensors]}
+    return parse_frame(data)
+
+
+def _dataset(rsp, ref, h, f):
+    return pyuff.prepare_58(binary=0, func_type=4, rsp_node=rsp[0], rsp_dir=rsp[1], ref_node=ref[0],
+                            ref_dir=ref[1], abscissa_spacing=1, abscissa_spec_data_type=18,
+                            ordinate_spec_data_type=12, orddenom_spec_data_type=13, data=h, x=f)
+
+
+def test_nodes_are_the_points_named_by_their_number_and_a_roving_hammer_reads_by_reciprocity(tmp_path):
+    # CONTRACTS.md section 3: node 12 is the point named "12"; a roving-hammer export keeps the response
+    # at the excitation (node 11, +X) and moves the force: by reciprocity, response at the force's point
+    frame = _numbered_frame()
+    f = np.arange(1, 41) * 0.5
+    h = {name: (k + 1) / (50.0 - f**2 + 1j * f) for k, name in enumerate(("s_top", "s_mid", "s_rot"))}
+    shaker, hammer = tmp_path / "shaker.uff", tmp_path / "hammer.uff"
+    pyuff.UFF(str(shaker)).write_sets([_dataset((12, 1), (11, 1), h["s_top"], f),
+                                       _dataset((13, -2), (11, 1), h["s_mid"], f)], mode="overwrite")
+    pyuff.UFF(str(hammer)).write_sets([_dataset((11, 1), (12, 1), h["s_top"], f),
+                                       _dataset((11, 1), (14, 6), h["s_rot"], f)], mode="overwrite")
+    table = import_frfs(shaker, frame)
+    assert table["sensor"].tolist()[::f.size] == ["s_top", "s_mid"]
+    mid = table[table["sensor"] == "s_mid"]
+    np.testing.assert_allclose(mid["real"] + 1j * mid["imag"], -h["s_mid"], rtol=1e-10)  # -Y flipped
+    roving = import_frfs(hammer, frame)
+    assert roving["sensor"].tolist()[::f.size] == ["s_top", "s_rot"]
+    rot = roving[roving["sensor"] == "s_rot"]
+    np.testing.assert_allclose(rot["real"] + 1j * rot["imag"], h["s_rot"], rtol=1e-10)
+    stray = tmp_path / "stray.uff"
+    pyuff.UFF(str(stray)).write_sets([_dataset((12, 1), (13, 2), h["s_top"], f)], mode="overwrite")
+    with pytest.raises(ValueError, match=r"stray\.uff: dataset 0 .*not the frame's excitation \(node 11"):
+        import_frfs(stray, frame)

@@ -110,6 +110,17 @@ def _propagate(args: argparse.Namespace, out: OutputSet) -> str:
     return f"{args.method}: moments of {moments.count} modes in {wall:.3f} s written to {args.out}"
 
 
+def _import(args: argparse.Namespace, out: OutputSet) -> str:
+    from workbench.io.importing import import_campaign, imported_files
+
+    campaign = import_campaign(args.files, args.frame, args.design, args.name, args.quantity)
+    files = imported_files(campaign, args.frame)
+    out.commit(files)
+    sensors = 0 if campaign.frf is None else campaign.frf["sensor"].nunique()
+    return (f"{len(campaign.test_ids)} test(s), {sensors} sensor(s) of {campaign.quantity} imported as campaign "
+            f"{campaign.name!r} into {args.out}")
+
+
 def _extract(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.io.campaign import load_campaign
     from workbench.workflow.measured import extract_campaign
@@ -256,6 +267,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("frame", help="frame.toml (CONTRACTS.md section 1) or a matrix model.toml (section 4)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
 
+    p = command("import", "a new campaign from UFF 58/58b or tidy CSV files as test software exports them", _import,
+                ("campaign.toml", "frame.toml", "design.csv", "frf.csv"))
+    p.add_argument("files", nargs="+", metavar="FILE",
+                   help="universal files (.uff, .unv, .uf: one test per file, or per test id in our headers) or "
+                        "tidy CSV (sensor, frequency_hz, real, imag, optional test_id)")
+    p.add_argument("--frame", required=True, help="the tested article's frame.toml, copied into the campaign")
+    p.add_argument("--design", help="design CSV: test_id and one column per factor (default: one factor 'test')")
+    p.add_argument("--name", help="the campaign's name (default: from the first file)")
+    p.add_argument("--quantity", choices=["receptance", "mobility", "accelerance"],
+                   help="what the files hold; required for CSV, checked against UFF headers")
+
     p = command("extract", "modal frequencies and damping of every test by circle fit", _extract,
                 ("modes.csv", "quality.csv", "shapes.csv"))
     p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
@@ -349,7 +371,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _inputs(args: argparse.Namespace) -> list[Path]:
     """The paths a command reads, which --out may neither be, lie inside, nor hold."""
     paths = [Path(p) for p in (getattr(args, "frame", None), getattr(args, "campaign", None),
-                               getattr(args, "campaigns", None), *(getattr(args, "joints_from", None) or ())) if p]
+                               getattr(args, "campaigns", None), getattr(args, "design", None),
+                               *(getattr(args, "joints_from", None) or ()), *(getattr(args, "files", None) or ()))
+             if p]
     # a matrix model's folder holds its matrices: it is an input directory as a campaign is
     return [p.parent if p.is_file() and p.suffix == ".toml" and is_matrix_model(p) else p for p in paths]
 

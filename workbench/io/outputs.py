@@ -155,6 +155,17 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 _MARKERS = ("campaign.toml", "model.toml", "frame.toml")  # a campaign or a model folder
+# The source line that opens a campaign written by `workbench import`: the one campaign folder a command
+# may replace (with --force), since it is that command's own earlier output
+IMPORT_STAMP = "workbench import:"
+
+
+def _imported_campaign(out: Path) -> bool:
+    try:
+        text = (out / "campaign.toml").read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    return f'source = "{IMPORT_STAMP}' in text
 
 
 class OutputSet:
@@ -185,7 +196,7 @@ class OutputSet:
             raise OutputExistsError(f"{where}: exists and is not a directory")
         entries = sorted(p.name for p in out.iterdir())
         marker = next((m for m in _MARKERS if m in entries), None)
-        if marker:
+        if marker and not (self.command == "import" and _imported_campaign(out)):
             raise OutputExistsError(f"{where}: holds {marker}, a campaign or model folder; the workbench never "
                                     "writes into one: choose a new or empty directory")
         foreign = [n for n in entries if n not in self.names or not (out / n).is_file()]

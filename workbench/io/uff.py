@@ -75,6 +75,7 @@ __all__ = [
     "FREQUENCY_TYPE",
     "export_frfs",
     "import_frfs",
+    "read_uff",
     "uff_quantity",
     "campaign_from_uff",
 ]
@@ -90,8 +91,11 @@ _UNITS = {"receptance": ("m", "rad"), "mobility": ("m/s", "rad/s"), "accelerance
 
 
 def _node_numbers(frame: Frame) -> dict[str, int]:
-    """UFF node number of each frame point: its index in ``[points]`` + 1."""
-    return {name: k + 1 for k, name in enumerate(frame.points)}
+    """UFF node number of each frame point (CONTRACTS.md section 3): the point named by the number
+    (``"4"`` is node 4); a frame with no point named by a number uses its index in ``[points]`` + 1.
+    """
+    named = {name: int(name) for name in frame.points if re.fullmatch(r"0|[1-9]\d*", name)}
+    return named or {name: k + 1 for k, name in enumerate(frame.points)}
 
 
 def _even_axis(axis: np.ndarray) -> bool:
@@ -294,6 +298,7 @@ class _Agreement:
     quantity: str | None = None
     reference: str | None = None
     excitations: set[tuple[int, int]] = field(default_factory=set)
+    roving: bool = False  # references checked against the frame's excitation instead (roving hammer allowed)
     seen: set[tuple[Any, str]] = field(default_factory=set)
 
 
@@ -323,7 +328,7 @@ def _check_frf_kind(dset: dict[str, Any], fail: _Fail, agreed: _Agreement) -> st
 
 
 def _test_and_sensor(dset: dict[str, Any], fail: _Fail, frame: Frame, lookup: dict[tuple[int, int], str],
-                     test_id: Any) -> tuple[Any, str]:
+                     test_id: Any, excitation: tuple[int, int] | None) -> tuple[Any, str]:
     """The test and the sensor of ``dset``: from its ids in our files, else from its response node."""
     if str(dset.get("id1", "")).startswith(_MARK):
         tid = str(dset.get("id2", "")).removeprefix("test_id=").strip()
@@ -334,8 +339,15 @@ def _test_and_sensor(dset: dict[str, Any], fail: _Fail, frame: Frame, lookup: di
             fail(f"sensor {sensor!r} (id4) is not a sensor of {frame.source}")
         return tid, sensor
     key = (int(dset["rsp_node"]), abs(int(dset["rsp_dir"])))
+    if excitation is not None and (int(dset["ref_node"]), abs(int(dset["ref_dir"]))) != excitation:
+        if key != excitation:
+            fail(f"reference node {dset['ref_node']} direction {dset['ref_dir']} is not the frame's excitation "
+                 f"(node {excitation[0]} direction {excitation[1]}), nor is the response (a roving-hammer FRF)")
+        # roving hammer: response fixed at the excitation, force roving; by reciprocity this is the
+        # response at the force's point over a force at the excitation
+        key = (int(dset["ref_node"]), abs(int(dset["ref_dir"])))
     if key not in lookup:
-        fail(f"unknown response node {dset['rsp_node']} direction {dset['rsp_dir']} "
+        fail(f"unknown response node {key[0]} direction {key[1]} "
              f"(known (node, direction): {sorted(lookup)}; pass sensor_map)")
     return test_id, lookup[key]
 
@@ -347,8 +359,8 @@ def _check_directions(dset: dict[str, Any], fail: _Fail, agreed: _Agreement, tid
     ref_dir = int(dset.get("ref_dir", 0))
     if abs(ref_dir) not in DIRECTION_CODES.values():
         fail(f"unknown reference direction {ref_dir} (a planar frame has 1 +X, 2 +Y, 6 +Z rotation)")
-    agreed.excitations.add((int(dset["ref_node"]), abs(ref_dir)))
-    if len(agreed.excitations) > 1:
+    agreed.excitations.add((int(dset["ref_node"]), abs(ref_dir)) if abs(ref_dir) else (0, 0))
+    if len(agreed.excitations) > 1 and not agreed.roving:
         fail(f"a second reference (node, direction) {sorted(agreed.excitations)}: a campaign has one excitation")
     if (tid, sensor) in agreed.seen:
         fail(f"test {tid}, sensor {sensor} already read from an earlier dataset")
@@ -389,12 +401,17 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
     sets = _read_datasets(path)
     units = _unit_factors(sets)
     lookup = _sensor_lookup(frame, sensor_map)
-    agreed = _Agreement(quantity)
+    # with the frame's own numbering, the excitation is known: each reference must be it (or, for a
+    # roving hammer, the response must); a sensor_map says nothing of the excitation's node
+    excitation = None
+    if sensor_map is None and frame.excitation is not None:
+        excitation = (_node_numbers(frame).get(frame.excitation.point, -1), DIRECTION_CODES[frame.excitation.dof])
+    agreed = _Agreement(quantity, roving=excitation is not None)
     tables = []
     for index, dset in enumerate(d for d in sets if d.get("type") == 58):
         fail = _failer(path, index, dset)
         reference = _check_frf_kind(dset, fail, agreed)
-        tid, sensor = _test_and_sensor(dset, fail, frame, lookup, test_id)
+        tid, sensor = _test_and_sensor(dset, fail, frame, lookup, test_id, excitation)
         ref_dir = _check_directions(dset, fail, agreed, tid, sensor)
         tables.append(_dataset_rows(dset, fail, tid, sensor, ref_dir, reference, units))
     if not tables:
@@ -439,6 +456,12 @@ def import_frfs(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int]
         node/direction, a repeated test/sensor, NaN or infinite values, a bad frequency axis.
     """
     return _read(path, frame, sensor_map, quantity, test_id)[0]
+
+
+def read_uff(path: str | Path, frame: Frame, quantity: str | None = None,
+             test_id: Any = 1) -> tuple[pd.DataFrame, str, str]:
+    """`import_frfs` with what the file says of itself: ``(table, quantity, reference)``."""
+    return _read(path, frame, None, quantity, test_id)
 
 
 def uff_quantity(path: str | Path) -> tuple[str | None, str]:
