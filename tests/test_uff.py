@@ -345,3 +345,46 @@ def test_nodes_are_the_points_named_by_their_number_and_a_roving_hammer_reads_by
     pyuff.UFF(str(stray)).write_sets([_dataset((12, 1), (13, 2), h["s_top"], f)], mode="overwrite")
     with pytest.raises(ValueError, match=r"stray\.uff: dataset 0 .*not the frame's excitation \(node 11"):
         import_frfs(stray, frame)
+
+
+def _labelled(path, labels: dict, units_164: tuple[float, float] | None = None):
+    """One accelerance record at s_top (node 3, +X) of the portal, with the given axis units labels."""
+    f = np.arange(1, 21) * 2.0
+    sets = []
+    if units_164 is not None:
+        sets.append(pyuff.prepare_164(units_code=5, units_description="file units", temp_mode=1,
+                                      length=units_164[0], force=units_164[1], temp=1.0, temp_offset=273.15))
+    dset = pyuff.prepare_58(binary=0, func_type=4, rsp_node=3, rsp_dir=1, ref_node=2, ref_dir=1,
+                            abscissa_spacing=1, abscissa_spec_data_type=18, ordinate_spec_data_type=12,
+                            orddenom_spec_data_type=13, data=(1 + 2j) * f, x=f)
+    dset.update(labels)
+    sets.append(dset)
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    return f
+
+
+@pytest.mark.parametrize("labels, factor, hz", [
+    ({"ordinate_axis_units_lab": "mm/s^2", "orddenom_axis_units_lab": "N"}, 1e-3, 1.0),
+    ({"ordinate_axis_units_lab": "g", "orddenom_axis_units_lab": "lbf"}, 9.80665 / 4.4482216152605, 1.0),
+    ({"ordinate_axis_units_lab": "g/N", "orddenom_axis_units_lab": ""}, 9.80665, 1.0),
+    ({"ordinate_axis_units_lab": "m/s2", "orddenom_axis_units_lab": "kN", "abscissa_axis_units_lab": "rad/s"},
+     1e-3, 1 / (2 * np.pi)),
+], ids=["mm/s^2 per N", "g per lbf", "g/N in one label", "per kN over rad/s"])
+def test_axis_labels_convert_to_si(tmp_path, labels, factor, hz):
+    f = _labelled(tmp_path / "lab.uff", labels)
+    table = import_frfs(tmp_path / "lab.uff", portal_frame())
+    np.testing.assert_allclose(table["real"] + 1j * table["imag"], (1 + 2j) * f * factor, rtol=1e-10)
+    np.testing.assert_allclose(table["frequency_hz"], f * hz, rtol=1e-12)
+
+
+@pytest.mark.parametrize("labels, units_164, message", [
+    ({"ordinate_axis_units_lab": "m/s2"}, (1000.0, 1.0), "contradicts the units dataset 164"),
+    ({"orddenom_axis_units_lab": "N"}, (1.0, 1000.0), "contradicts the units dataset 164"),
+    ({"ordinate_axis_units_lab": "furlong/fortnight^2"}, None, "not a unit of accelerance"),
+    ({"abscissa_axis_units_lab": "s"}, None, "not a frequency unit"),
+], ids=["length", "force", "unknown unit", "time axis"])
+def test_labels_that_contradict_or_name_no_unit_are_refused(tmp_path, labels, units_164, message):
+    _labelled(tmp_path / "lab.uff", labels, units_164)
+    with pytest.raises(ValueError, match=r"lab\.uff: dataset 0 .*" + message) as err:
+        import_frfs(tmp_path / "lab.uff", portal_frame())
+    assert "\n" not in str(err.value)

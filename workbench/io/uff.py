@@ -41,7 +41,8 @@ Reading a file written by other software, a dataset is mapped to a sensor by its
 ``(node, |direction|)``: through ``sensor_map`` when given, else through the frame's own
 numbering above. A negative direction code (-X, -Y, -Z rotation) on the response or the
 reference flips the FRF's sign, so that the table is in the frame's +x, +y, +rz axes. A
-dataset 164 (units) in the file rescales the ordinates to SI. Datasets of other types
+dataset 164 (units) and the records' axis labels (``mm/s^2``, ``g``, ``lbf``, ``rad/s``) convert them
+to SI (`workbench.io.uff_units`); contradicting labels are refused. Datasets of other types
 (geometry 15/2411, ...) are ignored.
 
 With `campaign` and the report this is one of the modules that import pandas: it builds
@@ -65,6 +66,7 @@ import pyuff
 
 from workbench.io.campaign import FRF_COLUMNS, Campaign, Factor
 from workbench.io.outputs import write_file
+from workbench.io.uff_units import file_units, record_units
 from workbench.model.frame import Frame
 from workbench.model.modal import QUANTITIES
 
@@ -268,15 +270,6 @@ def _reference_of(dset: dict[str, Any]) -> str:
     return "force"
 
 
-def _unit_factors(sets: list[dict[str, Any]]) -> tuple[float, float]:
-    """Length and force factors to SI of the file's units dataset 164 (the last one), else 1."""
-    length_factor, force_factor = 1.0, 1.0
-    for dset in sets:
-        if dset.get("type") == 164:
-            length_factor, force_factor = float(dset["length"]), float(dset["force"])
-    return length_factor, force_factor
-
-
 def _sensor_lookup(frame: Frame, sensor_map: dict[tuple[int, int], str] | None) -> dict[tuple[int, int], str]:
     """``{(node, direction): sensor}``: ``sensor_map``, else the frame's own numbering."""
     numbering = _node_numbers(frame)
@@ -369,10 +362,10 @@ def _check_directions(dset: dict[str, Any], fail: _Fail, agreed: _Agreement, tid
 
 
 def _dataset_rows(dset: dict[str, Any], fail: _Fail, tid: Any, sensor: str, ref_dir: int, reference: str,
-                  units: tuple[float, float]) -> pd.DataFrame:
+                  quantity: str, from_file: tuple[float, float] | None) -> pd.DataFrame:
     """The long-form rows of one dataset, in the frame's +x, +y, +rz axes and SI units.
 
-    ``units`` are the file's length and force factors to SI (`_unit_factors`).
+    Units come from the record's labels and the file's dataset 164 (`workbench.io.uff_units`).
     """
     axis = np.asarray(dset["x"], dtype=np.float64)
     values = np.asarray(dset["data"], dtype=np.complex128)
@@ -382,12 +375,16 @@ def _dataset_rows(dset: dict[str, Any], fail: _Fail, tid: Any, sensor: str, ref_
         fail("NaN or infinite value")
     if np.any(np.diff(axis) <= 0) or axis[0] < 0:
         fail("the frequency axis is not strictly increasing from a non-negative value")
-    length_factor, force_factor = units
-    sign = math.copysign(1.0, int(dset["rsp_dir"])) * math.copysign(1.0, ref_dir)
     rotation = abs(int(dset["rsp_dir"])) == DIRECTION_CODES["rz"]
-    scale = sign * (1.0 if rotation else 1.0 / length_factor) * (force_factor if reference == "force" else 1.0)
+    units = record_units(dset, quantity, rotation, from_file, reference == "voltage")
+    if isinstance(units, str):
+        fail(units)
+    sign = math.copysign(1.0, int(dset["rsp_dir"])) * math.copysign(1.0, ref_dir)
+    scale = sign * units.response / units.force
     if scale != 1.0:
         values = values * scale
+    if units.frequency != 1.0:
+        axis = axis * units.frequency
     return pd.DataFrame({"test_id": [tid] * axis.size, "sensor": sensor, "frequency_hz": axis,
                          "real": values.real.copy(), "imag": values.imag.copy()})
 
@@ -399,7 +396,7 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
     if quantity is not None and quantity not in QUANTITIES:
         raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
     sets = _read_datasets(path)
-    units = _unit_factors(sets)
+    from_file = file_units(sets)
     lookup = _sensor_lookup(frame, sensor_map)
     # with the frame's own numbering, the excitation is known: each reference must be it (or, for a
     # roving hammer, the response must); a sensor_map says nothing of the excitation's node
@@ -413,7 +410,8 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
         reference = _check_frf_kind(dset, fail, agreed)
         tid, sensor = _test_and_sensor(dset, fail, frame, lookup, test_id, excitation)
         ref_dir = _check_directions(dset, fail, agreed, tid, sensor)
-        tables.append(_dataset_rows(dset, fail, tid, sensor, ref_dir, reference, units))
+        tables.append(_dataset_rows(dset, fail, tid, sensor, ref_dir, reference, cast(str, agreed.quantity),
+                                    from_file))
     if not tables:
         raise ValueError(f"{path}: holds no dataset 58 (function at nodal DOF)")
     table = pd.concat(tables, ignore_index=True)[list(FRF_COLUMNS)]
