@@ -35,8 +35,9 @@ NUMERICAL = ["workbench"] + sorted(_module(p) for sub in NUMERICAL_PACKAGES for 
 
 
 @pytest.mark.parametrize("module", NUMERICAL)
-def test_numerical_module_stays_free_of_pandas_matplotlib_and_tqdm(module):
-    code = (f"import sys, {module}; heavy = [m for m in ('pandas', 'matplotlib', 'tqdm') if m in sys.modules]; "
+def test_numerical_module_stays_free_of_pandas_matplotlib_tqdm_and_dask(module):
+    code = (f"import sys, {module}; heavy = [m for m in ('pandas', 'matplotlib', 'tqdm', 'dask', 'distributed') "
+            "if m in sys.modules]; "
             "print(','.join(heavy))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "", f"{module} pulls in {done.stdout.strip()}"

@@ -186,7 +186,10 @@ def test_adaptive_keeps_smr1_where_it_is_good_enough(vertical):
 def test_monte_carlo_is_seeded_and_independent_of_workers(vertical):
     joints = joint_model(vertical.frame)
     a = monte_carlo(vertical, joints, 5, 60, seed=3, chunk=20)
-    b = monte_carlo(vertical, joints, 5, 60, seed=3, chunk=20, workers=2)
+    from workbench.workflow.execution import mapper
+
+    with mapper(workers=2) as dask_two_workers:
+        b = monte_carlo(vertical, joints, 5, 60, seed=3, mapper=dask_two_workers, chunk=20)
     c = monte_carlo(vertical, joints, 5, 60, seed=4, chunk=20)
     assert np.array_equal(a.frequency_hz, b.frequency_hz) and np.array_equal(a.gamma, b.gamma)
     assert not np.array_equal(a.frequency_hz, c.frequency_hz)

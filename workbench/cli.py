@@ -91,9 +91,14 @@ def _propagate(args: argparse.Namespace, out: OutputSet) -> str:
         raise ValueError(f"{args.frame}: joints: no joint has a cov > 0, so nothing varies")
     if (caution := smr1_cov_warning(model, joints, args.method)) is not None:
         warnings.warn(caution, stacklevel=1)
+    from workbench.workflow.execution import mapper
+
     start = time.perf_counter()
-    moments = propagate(model, joints, args.method, args.count, args.samples, args.seed, args.workers,
-                        progress=_progress() if args.method == "mc" else None)
+    if args.method == "mc":  # the one command of the three whose work is handed out
+        with mapper(args.workers, args.scheduler, _progress()) as tasks:
+            moments = propagate(model, joints, "mc", args.count, args.samples, args.seed, tasks)
+    else:
+        moments = propagate(model, joints, args.method, args.count, seed=args.seed)
     wall = time.perf_counter() - start
     table = csv_text(["mode", "mean_hz", "std_hz"],
                      ((k + 1, float(m), float(s)) for k, (m, s) in enumerate(zip(moments.mean_hz, moments.std_hz))))
@@ -241,8 +246,10 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
 def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.report.diagnosis_page import validation_text
     from workbench.workflow.diagnosis import validate, validation_files
+    from workbench.workflow.execution import mapper
 
-    summary = validate(args.cases, args.seed, args.frame, progress=_progress())
+    with mapper(args.workers, args.scheduler, _progress()) as run:
+        summary = validate(args.cases, args.seed, args.frame, mapper=run)
     out.commit(validation_files(summary))
     print(validation_text(summary))
     return f"{summary['cases']} blind cases; written to {args.out}"
@@ -301,7 +308,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=_positive_int, default=10_000, help="Monte Carlo samples (default 10000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the joint draws (default 0)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
-    p.add_argument("--workers", type=_positive_int, default=1, help="Monte Carlo worker processes")
+    p.add_argument("--workers", type=_positive_int, default=1,
+                   help="Monte Carlo worker processes on this machine (a local Dask cluster above 1)")
+    _scheduler_option(p)
 
     p = command("report", "a self-contained HTML identification report of a campaign (index.html)", _report,
                 ("index.html",))
@@ -338,10 +347,18 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--cases", type=_positive_int, default=40, help="number of cases (default 40)")
     p.add_argument("--seed", type=int, default=0, help="seed of the hidden effects and the rig (default 0)")
     p.add_argument("--frame", default="frames/two_bolt.toml", help="nominal frame (default frames/two_bolt.toml)")
+    p.add_argument("--workers", type=_positive_int, default=1,
+                   help="worker processes on this machine (a local Dask cluster above 1)")
+    _scheduler_option(p)
     p.add_argument("--out", required=True, help="output directory: summary.json and cases.csv")
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
     p.set_defaults(run=_validate_diagnosis, writes=("summary.json", "cases.csv"))
     return parser
+
+
+def _scheduler_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler (tcp://host:8786) to run the work on; same numbers as without")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -51,6 +51,7 @@ from scipy.integrate import quad
 from workbench.model.assembly import Model, joint_energies
 from workbench.model.modal import Modes, model_modes, shared_eigenvalues
 from workbench.progress import Progress
+from workbench.tasks import Mapper
 from workbench.uq.degenerate import cluster_moments, describe
 from workbench.uq.limits import check_cov
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule, monte_carlo
@@ -420,8 +421,8 @@ METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
 
 
 def propagate(model: Model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
-              workers: int = 1, progress: Progress | None = None) -> FrequencyMoments:
-    """Frequency moments by ``method`` (one of `METHODS`); ``samples`` and ``workers`` are for ``mc``.
+              mapper: Mapper | None = None, progress: Progress | None = None) -> FrequencyMoments:
+    """Frequency moments by ``method`` (one of `METHODS`); ``samples``, ``mapper`` and ``progress`` are for ``mc``.
 
     Every method but ``mc`` refuses joints whose CoV is above `workbench.uq.limits.COV_LIMIT`.
     """
@@ -435,5 +436,5 @@ def propagate(model: Model, joints: JointModel, method: str, count: int = 10, sa
     if method == "pert2":
         return pert2(model, joints, count)
     if method == "mc":
-        return monte_carlo(model, joints, count, samples, seed, workers, progress).moments
+        return monte_carlo(model, joints, count, samples, seed, mapper, progress).moments
     raise ValueError(f"method: {method!r} is not one of {', '.join(METHODS)}")

@@ -11,8 +11,6 @@ nominal ones by the mass-weighted MAC (an assignment problem), never by sorting 
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +20,8 @@ from threadpoolctl import threadpool_limits
 
 from workbench.model.assembly import Model
 from workbench.model.modal import Modes, model_modes, shared_eigenvalues, solve_modes
-from workbench.progress import Progress, report
+from workbench.progress import Progress
+from workbench.tasks import Mapper, serial_mapper
 
 __all__ = ["JointModel", "joint_model", "FrequencyMoments", "MonteCarloResult", "monte_carlo", "track_modes",
            "gamma_gauss_rule", "expectation_rule", "tracked_frequencies", "quadrature_reference"]
@@ -238,10 +237,12 @@ def tracked_frequencies(model: Model, nominal: Modes, gammas: np.ndarray,
     return freqs, worst
 
 
-def _worker_chunk(args) -> tuple[np.ndarray, np.ndarray]:
-    # One BLAS thread per worker process: several multithreaded BLAS on 2 cores thrash.
+def _chunk(shared: tuple, gammas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One Monte Carlo task: ``shared = (model, nominal, extra_modes)``, sent to each worker once."""
+    model, nominal, extra_modes = shared
+    # one BLAS thread per task: several multithreaded BLAS on 2 cores thrash
     with threadpool_limits(1):
-        return tracked_frequencies(*args)
+        return tracked_frequencies(model, nominal, gammas, extra_modes)
 
 
 def quadrature_reference(model: Model, joints: JointModel, count: int = 10,
@@ -272,7 +273,7 @@ def quadrature_reference(model: Model, joints: JointModel, count: int = 10,
 
 
 def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int = 10_000, seed: int = 0,
-                workers: int = 1, progress: Progress | None = None, extra_modes: int = 4,
+                mapper: Mapper | None = None, progress: Progress | None = None, extra_modes: int = 4,
                 chunk: int = 100) -> MonteCarloResult:
     """Monte Carlo moments of the first ``count`` eigenfrequencies: one exact eigen-solve per sample.
 
@@ -282,9 +283,10 @@ def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int 
     joints : the joint model (one law per joint of the model).
     count : modes to track (the nominal model's first ``count``).
     samples : number of joint draws.
-    seed : seeds the draws; the same seed gives the same numbers, whatever ``workers``.
-    workers : worker processes (1 runs in this process).
-    progress : called after each chunk of samples (`workbench.progress`).
+    seed : seeds the draws; the same seed gives the same numbers, whichever ``mapper`` ran them.
+    mapper : runs the chunks (`workbench.tasks.Mapper`: Dask through `workbench.workflow.execution`);
+        default, one after the other in this process.
+    progress : called after each chunk when no ``mapper`` is given (a mapper reports itself).
     extra_modes : modes solved beyond ``count`` so that a mode that moves up can still be tracked.
     chunk : samples per task.
 
@@ -298,20 +300,10 @@ def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int 
         raise ValueError(f"samples: need at least 2, got {samples}")
     nominal = model_modes(model, count)
     gamma = joints.sample(samples, np.random.default_rng(seed))
-    tasks = [(model, nominal, gamma[i:i + chunk], extra_modes) for i in range(0, samples, chunk)]
-    results: list[tuple[np.ndarray, np.ndarray]] = []
-    done = 0
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, os.cpu_count() or 1)) as pool:
-            for task, result in zip(tasks, pool.map(_worker_chunk, tasks)):
-                results.append(result)
-                done += len(task[2])
-                report(progress, "Monte Carlo", done, samples)
-    else:
-        for task in tasks:
-            results.append(tracked_frequencies(*task))
-            done += len(task[2])
-            report(progress, "Monte Carlo", done, samples)
+    # the draws are made here, from the one seed: every chunk's numbers are fixed before any runs
+    chunks = [gamma[i:i + chunk] for i in range(0, samples, chunk)]
+    run = mapper or serial_mapper(progress)
+    results = run(_chunk, chunks, "Monte Carlo", (model, nominal, extra_modes))
     freqs = np.concatenate([r[0] for r in results])
     worst = np.concatenate([r[1] for r in results])
     moments = FrequencyMoments(freqs.mean(axis=0), freqs.std(axis=0, ddof=1), "mc", nominal.frequency_hz)

@@ -17,10 +17,12 @@ from typing import Any
 from workbench.diagnose.verdict import Diagnosis, diagnose, diagnosis_record
 from workbench.io.campaign import Campaign, load_campaign
 from workbench.io.outputs import csv_text, json_text
+from workbench.model.frame import Frame
 from workbench.model.frame_file import read_frame
-from workbench.progress import Progress, report
+from workbench.progress import Progress
+from workbench.tasks import Mapper, serial_mapper
 from workbench.workflow.measured import measured_modes
-from workbench.workflow.rig_cases import CASE_TYPES, run_case, summarise
+from workbench.workflow.rig_cases import CASE_TYPES, CaseResult, run_case, summarise
 
 __all__ = ["CampaignDiagnosis", "diagnose_campaign", "validate", "validation_files"]
 
@@ -57,11 +59,18 @@ def diagnose_campaign(path: str | Path, count: int | None = None,
     return CampaignDiagnosis(campaign, result, record)
 
 
-def validate(cases: int, seed: int, frame_path: str | Path, progress: Progress | None = None) -> dict[str, Any]:
+def _case(frame: Frame, task: tuple[str, int]) -> CaseResult:
+    """One validation case: ``task = (effect kind, seed)``; the frame is shared by all."""
+    return run_case(frame, *task)
+
+
+def validate(cases: int, seed: int, frame_path: str | Path, progress: Progress | None = None,
+             mapper: Mapper | None = None) -> dict[str, Any]:
     """``cases`` blind cases from ``seed`` on the frame file (`workbench.workflow.rig_cases`), summarised.
 
     The effect types come in turn (`CASE_TYPES`); case ``i`` is seeded ``seed * 100003 + i``.
-    ``progress("validation cases", done, cases)`` is called after each case.
+    ``progress("validation cases", done, cases)`` is called after each case when no ``mapper``
+    (`workbench.tasks.Mapper`, e.g. Dask's) runs them; a case's numbers depend only on its seed.
 
     Returns
     -------
@@ -70,11 +79,9 @@ def validate(cases: int, seed: int, frame_path: str | Path, progress: Progress |
     """
     frame = read_frame(frame_path)
     kinds = [CASE_TYPES[i % len(CASE_TYPES)] for i in range(cases)]
-    results = []
     start = time.perf_counter()
-    for i in range(cases):
-        results.append(run_case(frame, kinds[i], seed * 100_003 + i))
-        report(progress, "validation cases", i + 1, cases)
+    run = mapper or serial_mapper(progress)
+    results = run(_case, [(kinds[i], seed * 100_003 + i) for i in range(cases)], "validation cases", frame)
     summary = summarise(results)
     summary.update({"seed": seed, "frame": str(frame_path), "wall_time_s": time.perf_counter() - start})
     summary["results"] = results

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -25,7 +24,8 @@ from workbench.extraction.modes import ModeEstimate, extract_tests
 from workbench.extraction.records import MeasuredModes
 from workbench.io.campaign import Campaign, CampaignError, amplitude_of_tests, frf_set, load_campaign
 from workbench.model.modal import modal_superposition
-from workbench.progress import Progress, report
+from workbench.progress import Progress
+from workbench.tasks import Mapper, serial_mapper
 from workbench.uq.prediction import FRFBand
 
 __all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract", "load_campaigns",
@@ -139,24 +139,18 @@ def load_and_extract(path: str | Path) -> Loaded:
     return campaign, (extract_campaign(campaign) if campaign.frf is not None else None)
 
 
-def load_campaigns(paths: Sequence[str | Path], workers: int = 1,
+def _load(_: None, path: str) -> Loaded:
+    return load_and_extract(path)
+
+
+def load_campaigns(paths: Sequence[str | Path], mapper: Mapper | None = None,
                    progress: Progress | None = None) -> dict[str, Loaded]:
-    """`load_and_extract` of several campaigns, ``workers`` processes at a time (the circle fits
-    of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given.
+    """`load_and_extract` of several campaigns, run by ``mapper`` (`workbench.workflow.execution`; the
+    circle fits of a campaign take 5-15 s); returns ``{path: (campaign, extraction)}`` in the order given.
     """
     names = list(dict.fromkeys(str(p) for p in paths))
-    done: dict[str, Loaded] = {}
-    if workers > 1 and len(names) > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, len(names))) as pool:
-            futures = {pool.submit(load_and_extract, p): p for p in names}
-            for future in as_completed(futures):
-                done[futures[future]] = future.result()
-                report(progress, "circle fits", len(done), len(names))
-    else:
-        for p in names:
-            done[p] = load_and_extract(p)
-            report(progress, "circle fits", len(done), len(names))
-    return {p: done[p] for p in names}
+    run = mapper or serial_mapper(progress)
+    return dict(zip(names, run(_load, names, "circle fits", None)))
 
 
 @dataclass(frozen=True)

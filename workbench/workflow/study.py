@@ -37,6 +37,7 @@ from workbench.model.assembly import Model, assemble
 from workbench.model.frame import Frame
 from workbench.model.joints import frame_with_joint_models
 from workbench.progress import Progress
+from workbench.tasks import Mapper
 from workbench.uq.prediction import FrequencyComparison, FRFBand, compare_frequencies, frf_band
 from workbench.uq.smr import propagate
 from workbench.uq.stochastic import (
@@ -47,6 +48,7 @@ from workbench.uq.stochastic import (
     monte_carlo,
     quadrature_reference,
 )
+from workbench.workflow.execution import mapper as task_mapper
 from workbench.workflow.measured import (
     Extraction,
     Loaded,
@@ -221,8 +223,8 @@ def _bayes_refusal(campaign, data: MeasuredModes, bayes: bool) -> str:
 
 
 def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int = 0, samples: int = 1000,
-                   bayes: bool = True, bayes_steps: int = 3000, bayes_burn: int | None = None, workers: int = 1,
-                   progress: Progress | None = None, notify: Notify = None) -> Study:
+                   bayes: bool = True, bayes_steps: int = 3000, bayes_burn: int | None = None,
+                   mapper: Mapper | None = None, progress: Progress | None = None, notify: Notify = None) -> Study:
     """Identify and propagate one campaign (module notes).
 
     Parameters
@@ -236,7 +238,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
         10 000 and 1 000 to 10 000).
     bayes : run the Bayesian identification where it applies; bayes_steps, bayes_burn : its
         kept and discarded steps per walker (burn-in default: a quarter of the kept steps, at most 500).
-    workers : processes of the Monte Carlo reference.
+    mapper : runs the Monte Carlo reference's chunks (`workbench.workflow.execution.mapper`).
     progress : called as the long steps advance (`workbench.progress`); notify : one line per finished step.
     """
     steps = _Steps(notify, f"{campaign_label(campaign)}: ")
@@ -276,7 +278,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     if joints.random.any():
         start = time.perf_counter()
         methods = {m: _propagate(identified, joints, m, count, seed) for m in ACCURACY_METHODS}
-        reference = monte_carlo(identified, joints, count, samples, seed, workers, progress)
+        reference = monte_carlo(identified, joints, count, samples, seed, mapper, progress)
         random = int(joints.random.sum())
         exact = (quadrature_reference(identified, joints, count, points=9 if random <= 2 else 5)
                  if random <= TENSOR_LIMIT else None)  # 5^4 = 625 solves at most, about 3 s
@@ -426,11 +428,12 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
     """
     start = time.perf_counter()
     paths = [str(campaign_path), *(str(p) for p in joints_from)]
-    loaded = load_campaigns(paths, workers, progress)
-    run_steps = [Step("load and circle-fit", time.perf_counter() - start, f"{len(loaded)} campaign(s)")]
-    campaign, extraction = loaded[str(campaign_path)]
-    study = study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes, bayes_steps=bayes_steps,
-                           workers=workers, progress=progress, notify=notify)
+    with task_mapper(workers, None, progress) as tasks:
+        loaded = load_campaigns(paths, tasks, progress)
+        run_steps = [Step("load and circle-fit", time.perf_counter() - start, f"{len(loaded)} campaign(s)")]
+        campaign, extraction = loaded[str(campaign_path)]
+        study = study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes,
+                               bayes_steps=bayes_steps, mapper=tasks, progress=progress, notify=notify)
     predictions: tuple[Prediction, ...] = ()
     if joints_from:
         if extraction is None:
@@ -475,14 +478,15 @@ def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, ba
         notify(f"demo: circle fits of {', '.join(names)} from {root}/ ({workers} processes)")
     start = time.perf_counter()
     # the largest campaigns first, so that two processes finish together
-    loaded = load_campaigns([root / n for n in DEMO_PREDICTIONS + DEMO_STUDIES], workers, progress)
-    run_steps = [Step("load and circle-fit", time.perf_counter() - start,
-                      f"{len(names)} campaigns, {workers} processes")]
-    if notify is not None:
-        notify(f"loaded and circle-fitted {len(names)} campaigns ({run_steps[0].wall_time_s:.1f} s)")
-    studies = tuple(study_campaign(*loaded[str(root / n)], seed=seed, samples=samples, bayes=n in DEMO_BAYES,
-                                   bayes_steps=bayes_steps, workers=workers, progress=progress, notify=notify)
-                    for n in DEMO_STUDIES)
+    with task_mapper(workers, None, progress) as tasks:
+        loaded = load_campaigns([root / n for n in DEMO_PREDICTIONS + DEMO_STUDIES], tasks, progress)
+        run_steps = [Step("load and circle-fit", time.perf_counter() - start,
+                          f"{len(names)} campaigns, {workers} processes")]
+        if notify is not None:
+            notify(f"loaded and circle-fitted {len(names)} campaigns ({run_steps[0].wall_time_s:.1f} s)")
+        studies = tuple(study_campaign(*loaded[str(root / n)], seed=seed, samples=samples, bayes=n in DEMO_BAYES,
+                                       bayes_steps=bayes_steps, mapper=tasks, progress=progress, notify=notify)
+                        for n in DEMO_STUDIES)
     sources = {g: s for study in studies for g, s in study.joints.items()}
     predictions = tuple(_predict_loaded(loaded[str(root / n)], sources, seed, samples, progress, notify)
                         for n in DEMO_PREDICTIONS)

@@ -1,0 +1,91 @@
+"""Dask as the one execution layer (issue 18): same seed, same bytes, whatever ran the work.
+
+`propagate --method mc` runs serially, on a local two-worker cluster (``--workers 2``) and on a running
+scheduler (``--scheduler ADDRESS``, a `distributed.LocalCluster` started here as a user would start
+``dask scheduler`` and two ``dask worker``); the three moments.csv must be identical. A scheduler that
+does not answer is one line naming the address, well within the 10 s the contract allows and the
+test's alarm. A worker killed while its tasks run is replaced, and the result is still identical.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+import pytest
+from conftest import REPO, error_lines, run_cli
+
+distributed = pytest.importorskip("distributed")
+
+FRAME = REPO / "frames" / "four_bolt.toml"
+# distributed's comms leave sockets to the garbage collector when a client or cluster closes (a
+# ResourceWarning raised at an arbitrary later moment): not ours to fix, and not a result
+pytestmark = pytest.mark.filterwarnings("ignore::ResourceWarning",
+                                        "ignore::pytest.PytestUnraisableExceptionWarning")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=logging.ERROR) as running:
+        yield running
+
+
+def _mc(tmp_path, name: str, *extra: str) -> bytes:
+    out = tmp_path / name
+    code, err = run_cli(["propagate", str(FRAME), "--method", "mc", "--samples", "400", "--seed", "3",
+                         "--count", "6", "--out", str(out), *extra])
+    assert code == 0, err
+    return (out / "moments.csv").read_bytes()
+
+
+def test_monte_carlo_gives_the_same_bytes_serially_locally_and_on_a_scheduler(tmp_path, cluster):
+    serial = _mc(tmp_path, "serial")
+    assert _mc(tmp_path, "local", "--workers", "2") == serial
+    assert _mc(tmp_path, "remote", "--scheduler", cluster.scheduler_address) == serial
+
+
+def test_an_unreachable_scheduler_is_one_line_naming_it(tmp_path):
+    start = time.perf_counter()
+    code, err = run_cli(["propagate", str(FRAME), "--method", "mc", "--samples", "10", "--scheduler",
+                         "tcp://127.0.0.1:9", "--out", str(tmp_path / "o")])
+    assert code == 2 and time.perf_counter() - start < 15
+    [line] = error_lines(err)
+    assert "tcp://127.0.0.1:9" in line and "--scheduler" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_worker_killed_mid_run_changes_nothing(cluster):
+    from workbench.model.assembly import assemble
+    from workbench.model.frame_file import read_frame
+    from workbench.uq.stochastic import joint_model, monte_carlo
+    from workbench.workflow.execution import _dask_mapper
+
+    model = assemble(read_frame(FRAME))
+    joints = joint_model(model.frame)
+    reference = monte_carlo(model, joints, 6, 600, seed=8, chunk=20)
+    with distributed.Client(cluster, set_as_default=False) as client:
+        killed = []
+
+        def kill_once(label, done, total):  # at a third of the tasks, kill the worker of the next ones
+            if done == total // 3 and not killed:
+                victim = next(iter(cluster.workers.values()))
+                victim.process.process.kill()
+                killed.append(victim)
+
+        result = monte_carlo(model, joints, 6, 600, seed=8, chunk=20, mapper=_dask_mapper(client, kill_once))
+    assert killed
+    assert np.array_equal(result.frequency_hz, reference.frequency_hz)
+
+
+@pytest.mark.slow
+def test_validation_cases_are_the_same_with_and_without_a_scheduler(tmp_path, cluster):
+    outputs = []
+    for name, extra in (("serial", ()), ("remote", ("--scheduler", cluster.scheduler_address))):
+        from workbench.cli import main  # not run_cli: four cases take longer than its hang alarm
+
+        assert main(["validate-diagnosis", "--cases", "4", "--seed", "5", "--out", str(tmp_path / name), *extra]) == 0
+        rows = (tmp_path / name / "cases.csv").read_text().splitlines()
+        outputs.append([row.rsplit(",", 1)[0] for row in rows])  # all but the wall time
+    assert outputs[0] == outputs[1]

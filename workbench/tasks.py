@@ -1,0 +1,37 @@
+"""The one way independent work is handed out: a ``Mapper`` the caller passes in.
+
+Numerical code that has many independent tasks (Monte Carlo chunks, circle fits of many tests,
+validation cases) never starts processes itself and imports no scheduler: it builds its tasks and
+calls ``mapper(function, tasks, label, shared)``, which returns ``[function(shared, task) for task
+in tasks]`` in the tasks' order (``shared``, the model say, is sent to each worker once). `serial`
+does exactly that in this process; `workbench.workflow.execution` gives
+the Dask mapper (a local cluster, or a running scheduler at ``--scheduler ADDRESS``). Each task
+carries its own inputs and seeds, so the results do not depend on the mapper or the worker count.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from workbench.progress import Progress, report
+
+__all__ = ["Mapper", "serial", "serial_mapper"]
+
+Mapper = Callable[[Callable[[Any, Any], Any], Sequence[Any], str, Any], list[Any]]
+"""``mapper(function, tasks, label, shared) -> [function(shared, task) for task in tasks]``, in order."""
+
+
+def serial(function: Callable[[Any, Any], Any], tasks: Sequence[Any], label: str = "tasks", shared: Any = None,
+           progress: Progress | None = None) -> list[Any]:
+    """Run ``tasks`` one after the other in this process, reporting ``progress`` after each."""
+    out = []
+    for done, task in enumerate(tasks, start=1):
+        out.append(function(shared, task))
+        report(progress, label, done, len(tasks))
+    return out
+
+
+def serial_mapper(progress: Progress | None = None) -> Mapper:
+    """`serial` as a `Mapper` reporting to ``progress``."""
+    return lambda function, tasks, label, shared: serial(function, tasks, label, shared, progress)

@@ -1,0 +1,83 @@
+"""Dask distributed, the one execution layer: ``--workers N`` (a local cluster) or ``--scheduler ADDRESS``.
+
+`mapper` opens the place where tasks run and yields a `workbench.tasks.Mapper`: one process (the
+serial path) for ``workers == 1`` without a scheduler; otherwise a Dask client, either on a local
+cluster of ``workers`` single-threaded worker processes, or on the running scheduler at ``scheduler``
+(``tcp://host:8786``; start one with ``dask scheduler`` and workers with ``dask worker ADDRESS``).
+What every task shares (a model, its nominal modes) is scattered to the workers once; each task is
+retried on another worker when its worker dies; results come back in the tasks' order, so for one
+seed the numbers are the same whichever path ran them.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any
+
+from workbench.progress import Progress, report
+from workbench.tasks import Mapper, serial_mapper
+
+__all__ = ["SCHEDULER_TIMEOUT_S", "mapper"]
+
+SCHEDULER_TIMEOUT_S = 10  # an unreachable --scheduler is said within this time
+RETRIES = 3  # a task whose worker died is run again, up to this many times
+
+
+@contextmanager
+def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | None = None) -> Iterator[Mapper]:
+    """The `Mapper` of ``workers`` local processes or of the Dask scheduler at ``scheduler``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the address when no scheduler answers there within `SCHEDULER_TIMEOUT_S`.
+    """
+    if scheduler is None and workers <= 1:
+        yield serial_mapper(progress)
+        return
+    from distributed import Client, LocalCluster  # only when work is handed out: its import takes a second
+
+    cluster = None
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s", set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answered within {SCHEDULER_TIMEOUT_S} s "
+                             f"({' '.join(str(exc).split())[:160]})") from None
+    else:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        client = Client(cluster, set_as_default=False)
+    try:
+        yield _dask_mapper(client, progress)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _one_blas_thread(function: Callable[[Any, Any], Any], shared: Any, task: Any) -> Any:
+    """Run a task with one BLAS thread: each worker is one process, and two multithreaded BLAS on
+    two cores thrash (measured: 4 validation cases took 7.3 s each alone, 8.4 s each two at a time).
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        return function(shared, task)
+
+
+def _dask_mapper(client: Any, progress: Progress | None) -> Mapper:
+    def run(function: Callable[[Any, Any], Any], tasks: Sequence[Any], label: str, shared: Any) -> list[Any]:
+        # one future for the whole shared object (scattering a tuple would scatter its items one by one)
+        common = client.scatter([shared], broadcast=True)[0] if shared is not None else None
+        futures = [client.submit(_one_blas_thread, function, common, task, pure=False, retries=RETRIES)
+                   for task in tasks]
+        results = []
+        for done, future in enumerate(futures, start=1):  # in order: the bar moves as the first tasks end
+            results.append(future.result())
+            report(progress, label, done, len(futures))
+        return results
+
+    return run
