@@ -46,6 +46,18 @@ def test_monte_carlo_gives_the_same_bytes_serially_locally_and_on_a_scheduler(tm
     assert _mc(tmp_path, "remote", "--scheduler", cluster.scheduler_address) == serial
 
 
+def test_circle_fits_give_the_same_modes_serially_and_on_a_scheduler(tmp_path, cluster):
+    from conftest import cut_example_campaign
+
+    campaign = cut_example_campaign(tmp_path / "campaign")
+    found = []
+    for name, extra in (("serial", ()), ("remote", ("--scheduler", cluster.scheduler_address))):
+        code, err = run_cli(["extract", str(campaign), "--out", str(tmp_path / name), *extra])
+        assert code == 0, err
+        found.append((tmp_path / name / "modes.csv").read_bytes())
+    assert found[0] == found[1] and len(found[0].splitlines()) > 2
+
+
 def test_an_unreachable_scheduler_is_one_line_naming_it(tmp_path):
     start = time.perf_counter()
     code, err = run_cli(["propagate", str(FRAME), "--method", "mc", "--samples", "10", "--scheduler",

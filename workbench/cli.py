@@ -134,7 +134,10 @@ def _extract(args: argparse.Namespace, out: OutputSet) -> str:
     bands = None
     if args.bands:
         bands = [tuple(float(v) for v in band.split(":")) for band in args.bands.split(",")]
-    extraction = extract_campaign(campaign, bands, args.count)
+    from workbench.workflow.execution import mapper
+
+    with mapper(args.workers, args.scheduler, _progress()) as tasks:
+        extraction = extract_campaign(campaign, bands, args.count, tasks)
     modes_rows, quality_rows, flagged = [], [], 0
     for t, per_mode in extraction.estimates.items():
         for k, est in enumerate(per_mode, start=1):
@@ -289,6 +292,9 @@ def _parser() -> argparse.ArgumentParser:
                 ("modes.csv", "quality.csv", "shapes.csv"))
     p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
     p.add_argument("--count", type=_positive_int, help="keep the N lowest modes found")
+    p.add_argument("--workers", type=_positive_int, default=1,
+                   help="circle fits of the tests on N worker processes (a local Dask cluster above 1)")
+    _scheduler_option(p)
     p.add_argument("--bands", help="override the mode bands: 'lo:hi,lo:hi,...' in Hz")
 
     p = command("identify", "mean and CoV of each joint group's modulus from a campaign", _identify,

@@ -26,6 +26,7 @@ from workbench.extraction.circlefit import (
     noise_level,
 )
 from workbench.model.modal import add_noise, modal_superposition
+from workbench.tasks import Mapper, serial_mapper
 
 __all__ = ["ModeEstimate", "find_mode_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]
 
@@ -215,8 +216,15 @@ def combine(fits) -> ModeEstimate:
         flags=tuple(flag for flag in FLAGS if flag in flags), fits=fits)
 
 
-def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, count: int | None = None
-                  ) -> tuple[list[tuple[float, float]], dict[object, list[ModeEstimate]]]:
+def _fit_test(shared: tuple, task: tuple) -> list[ModeEstimate]:
+    """One test's modes: ``shared = (quantity, bands)``, ``task = (frequency_hz, frfs)``."""
+    quantity, bands = shared
+    f, h = task
+    return [combine(row) for row in fit_modes(f, np.atleast_2d(h), quantity, bands)]
+
+
+def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, count: int | None = None,
+                  mapper: Mapper | None = None) -> tuple[list[tuple[float, float]], dict[object, list[ModeEstimate]]]:
     """Modes of every test of a campaign: bands found once across all tests and sensors.
 
     Parameters
@@ -226,6 +234,7 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
     bands : (f_lo, f_hi) Hz per mode, or None to find them (`find_mode_bands` on all the curves
         of all the tests when they share one frequency axis, else on the first test's curves).
     count : keep the ``count`` lowest modes found.
+    mapper : runs the tests' fits (`workbench.tasks.Mapper`); default, one after the other here.
 
     Returns
     -------
@@ -242,9 +251,9 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
         bands = find_mode_bands(axis, curves)
     # the lowest modes, not the most prominent: mode k must be the k-th mode in every use
     bands = sorted((float(lo), float(hi)) for lo, hi in bands)[:count]
-    estimates = {t: [combine(row) for row in fit_modes(frequency_hz[t], np.atleast_2d(frfs[t]), quantity, bands)]
-                 for t in tests}
-    return bands, estimates
+    run = mapper or serial_mapper()
+    fitted = run(_fit_test, [(frequency_hz[t], frfs[t]) for t in tests], "circle fits", (quantity, bands))
+    return bands, dict(zip(tests, fitted))
 
 
 def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damping_ratios=(0.03, 0.01, 0.001),

@@ -106,7 +106,7 @@ class Extraction:
         return np.array(values, complex) if len(sizes) == 1 else None
 
 
-def extract_campaign(campaign, bands=None, count: int | None = None) -> Extraction:
+def extract_campaign(campaign, bands=None, count: int | None = None, mapper: Mapper | None = None) -> Extraction:
     """Circle-fit modes of every test of ``campaign`` (`workbench.io.campaign.Campaign` with FRFs).
 
     Parameters
@@ -125,7 +125,8 @@ def extract_campaign(campaign, bands=None, count: int | None = None) -> Extracti
     start = time.perf_counter()
     sets = {t: frf_set(campaign, t) for t in campaign.test_ids}
     found, estimates = extract_tests({t: s.frequency_hz for t, s in sets.items()},
-                                     {t: s.values for t, s in sets.items()}, campaign.quantity, bands, count)
+                                     {t: s.values for t, s in sets.items()}, campaign.quantity, bands, count,
+                                     mapper)
     return Extraction(sets, tuple(found), estimates, time.perf_counter() - start)
 
 
