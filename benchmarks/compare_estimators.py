@@ -108,7 +108,6 @@ import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
-from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -271,6 +270,11 @@ def run_campaign(n_tests: int, campaign: int, base_seed: int = 1000, steps: int 
 
 def _job(args):
     return args, run_campaign(*args)
+
+
+def _task(_shared, args):
+    """`_job` as a task of the Dask execution layer (`workbench.workflow.execution.mapper`)."""
+    return _job(args)
 
 
 # ----------------------------------------------------------------------------------- summary
@@ -509,6 +513,7 @@ def main(argv=None) -> int:
     parser.add_argument("--burn", type=int, default=BURN, help=f"burn-in steps (default {BURN})")
     parser.add_argument("--seed", type=int, default=1000, help="base seed: campaign c uses base + c")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    parser.add_argument("--scheduler", help="a running Dask scheduler (tcp://host:8786) instead of local workers")
     args = parser.parse_args(argv)
     campaigns, steps, burn = args.campaigns, args.steps, args.burn
     if args.quick:
@@ -523,21 +528,23 @@ def main(argv=None) -> int:
           f"emcee {steps} kept + {burn} burn-in steps", flush=True)
     rows: list[dict] = []
     posteriors: dict = {d: {} for d in DESIGNS}
-    done = 0
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(_job, job) for job in jobs]
-        for future in as_completed(futures):
-            (design, c, *_), (job_rows, kept) = future.result()
-            rows.extend(job_rows)
-            if kept is not None:
-                posteriors[design][c] = kept
-            done += 1
-            mm, by = job_rows
-            print(f"[{done:3d}/{len(jobs)} {time.perf_counter() - t_start:6.0f} s] {design:2d} tests, campaign {c:2d}: "
-                  f"MM E {mm['E_pa'] / 1e9:6.2f} GPa CoV {mm['cov']:.3f} ({mm['wall_time_s']:.1f} s) | "
-                  f"Bayes E {by['E_pa'] / 1e9:6.2f} [{by['E_lo_pa'] / 1e9:.2f}, {by['E_hi_pa'] / 1e9:.2f}] "
-                  f"CoV {by['cov']:.3f} [{by['cov_lo']:.3f}, {by['cov_hi']:.3f}] R-hat {by['max_rhat']:.3f} "
-                  f"({by['wall_time_s']:.1f} s) | sample CoV {by['sample_cov']:.3f}", flush=True)
+    from workbench.workflow.execution import mapper
+
+    def progress(label, done, total):
+        print(f"[{done:3d}/{total} {time.perf_counter() - t_start:6.0f} s] {label}", flush=True)
+
+    with mapper(args.workers, args.scheduler, progress) as run:
+        results = run(_task, jobs, "campaigns identified", None)
+    for done, ((design, c, *_), (job_rows, kept)) in enumerate(results, start=1):
+        rows.extend(job_rows)
+        if kept is not None:
+            posteriors[design][c] = kept
+        mm, by = job_rows
+        print(f"[{done:3d}/{len(jobs)}] {design:2d} tests, campaign {c:2d}: "
+              f"MM E {mm['E_pa'] / 1e9:6.2f} GPa CoV {mm['cov']:.3f} ({mm['wall_time_s']:.1f} s) | "
+              f"Bayes E {by['E_pa'] / 1e9:6.2f} [{by['E_lo_pa'] / 1e9:.2f}, {by['E_hi_pa'] / 1e9:.2f}] "
+              f"CoV {by['cov']:.3f} [{by['cov_lo']:.3f}, {by['cov_hi']:.3f}] R-hat {by['max_rhat']:.3f} "
+              f"({by['wall_time_s']:.1f} s) | sample CoV {by['sample_cov']:.3f}", flush=True)
     rows.sort(key=lambda r: (r["design"], r["campaign"], ESTIMATORS.index(r["estimator"])))
     summary = summarise(rows)
     write_csv(RUNS_CSV, rows, RUN_FIELDS)

@@ -292,9 +292,7 @@ def _parser() -> argparse.ArgumentParser:
                 ("modes.csv", "quality.csv", "shapes.csv"))
     p.add_argument("campaign", help="campaign directory (CONTRACTS.md section 2) with frf.csv or frf.parquet")
     p.add_argument("--count", type=_positive_int, help="keep the N lowest modes found")
-    p.add_argument("--workers", type=_positive_int, default=1,
-                   help="circle fits of the tests on N worker processes (a local Dask cluster above 1)")
-    _scheduler_option(p)
+    _work_options(p)
     p.add_argument("--bands", help="override the mode bands: 'lo:hi,lo:hi,...' in Hz")
 
     p = command("identify", "mean and CoV of each joint group's modulus from a campaign", _identify,
@@ -314,9 +312,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=_positive_int, default=10_000, help="Monte Carlo samples (default 10000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the joint draws (default 0)")
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
-    p.add_argument("--workers", type=_positive_int, default=1,
-                   help="Monte Carlo worker processes on this machine (a local Dask cluster above 1)")
-    _scheduler_option(p)
+    _work_options(p)
 
     p = command("report", "a self-contained HTML identification report of a campaign (index.html)", _report,
                 ("index.html",))
@@ -353,16 +349,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--cases", type=_positive_int, default=40, help="number of cases (default 40)")
     p.add_argument("--seed", type=int, default=0, help="seed of the hidden effects and the rig (default 0)")
     p.add_argument("--frame", default="frames/two_bolt.toml", help="nominal frame (default frames/two_bolt.toml)")
-    p.add_argument("--workers", type=_positive_int, default=1,
-                   help="worker processes on this machine (a local Dask cluster above 1)")
-    _scheduler_option(p)
+    _work_options(p)
     p.add_argument("--out", required=True, help="output directory: summary.json and cases.csv")
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
     p.set_defaults(run=_validate_diagnosis, writes=("summary.json", "cases.csv"))
     return parser
 
 
-def _scheduler_option(p: argparse.ArgumentParser) -> None:
+def _work_options(p: argparse.ArgumentParser) -> None:
+    """``--workers`` and ``--scheduler`` of the commands whose work is handed out (CONTRACTS.md section 3)."""
+    p.add_argument("--workers", type=_positive_int, default=1,
+                   help="worker processes on this machine (a local Dask cluster above 1)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler (tcp://host:8786) to run the work on; same numbers as without")
 
