@@ -237,12 +237,16 @@ def tracked_frequencies(model: Model, nominal: Modes, gammas: np.ndarray,
     return freqs, worst
 
 
-def _chunk(shared: tuple, gammas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One Monte Carlo task: ``shared = (model, nominal, extra_modes)``, sent to each worker once."""
-    model, nominal, extra_modes = shared
+def _chunk(shared: tuple, task: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One Monte Carlo task: ``shared = (model, nominal, extra_modes, joints)``, sent to each worker
+    once; ``task = (seed sequence, samples)``: the task draws its own joints from its own stream.
+    """
+    model, nominal, extra_modes, joints = shared
+    stream, count = task
+    gammas = joints.sample(count, np.random.default_rng(stream))
     # one BLAS thread per task: several multithreaded BLAS on 2 cores thrash
     with threadpool_limits(1):
-        return tracked_frequencies(model, nominal, gammas, extra_modes)
+        return (gammas, *tracked_frequencies(model, nominal, gammas, extra_modes))
 
 
 def quadrature_reference(model: Model, joints: JointModel, count: int = 10,
@@ -283,12 +287,13 @@ def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int 
     joints : the joint model (one law per joint of the model).
     count : modes to track (the nominal model's first ``count``).
     samples : number of joint draws.
-    seed : seeds the draws; the same seed gives the same numbers, whichever ``mapper`` ran them.
+    seed : seeds the draws, chunk i from the i-th stream of ``numpy.random.SeedSequence(seed).spawn``:
+        the same seed (and chunk size) gives the same numbers, whichever ``mapper`` ran them.
     mapper : runs the chunks (`workbench.tasks.Mapper`: Dask through `workbench.workflow.execution`);
         default, one after the other in this process.
     progress : called after each chunk when no ``mapper`` is given (a mapper reports itself).
     extra_modes : modes solved beyond ``count`` so that a mode that moves up can still be tracked.
-    chunk : samples per task.
+    chunk : samples per task (part of the random stream: keep it to reproduce a run).
 
     Returns
     -------
@@ -299,12 +304,14 @@ def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int 
     if samples < 2:
         raise ValueError(f"samples: need at least 2, got {samples}")
     nominal = model_modes(model, count)
-    gamma = joints.sample(samples, np.random.default_rng(seed))
-    # the draws are made here, from the one seed: every chunk's numbers are fixed before any runs
-    chunks = [gamma[i:i + chunk] for i in range(0, samples, chunk)]
+    # task i draws from the i-th stream spawned from the seed: the numbers depend on the seed and the
+    # chunk size only, never on which worker ran which task, nor on how many there were
+    sizes = [min(chunk, samples - start) for start in range(0, samples, chunk)]
+    streams = np.random.SeedSequence(seed).spawn(len(sizes))
     run = mapper or serial_mapper(progress)
-    results = run(_chunk, chunks, "Monte Carlo", (model, nominal, extra_modes))
-    freqs = np.concatenate([r[0] for r in results])
-    worst = np.concatenate([r[1] for r in results])
+    results = run(_chunk, list(zip(streams, sizes)), "Monte Carlo", (model, nominal, extra_modes, joints))
+    gamma = np.concatenate([r[0] for r in results])
+    freqs = np.concatenate([r[1] for r in results])
+    worst = np.concatenate([r[2] for r in results])
     moments = FrequencyMoments(freqs.mean(axis=0), freqs.std(axis=0, ddof=1), "mc", nominal.frequency_hz)
     return MonteCarloResult(moments, freqs, gamma, worst, seed)

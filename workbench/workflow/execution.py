@@ -69,14 +69,18 @@ def _one_blas_thread(function: Callable[[Any, Any], Any], shared: Any, task: Any
 
 
 def _dask_mapper(client: Any, progress: Progress | None) -> Mapper:
+    from distributed import as_completed
+
     def run(function: Callable[[Any, Any], Any], tasks: Sequence[Any], label: str, shared: Any) -> list[Any]:
         # one future for the whole shared object (scattering a tuple would scatter its items one by one)
         common = client.scatter([shared], broadcast=True)[0] if shared is not None else None
         futures = [client.submit(_one_blas_thread, function, common, task, pure=False, retries=RETRIES)
                    for task in tasks]
-        results = []
-        for done, future in enumerate(futures, start=1):  # in order: the bar moves as the first tasks end
-            results.append(future.result())
+        index = {future.key: i for i, future in enumerate(futures)}
+        results: list[Any] = [None] * len(futures)
+        # as tasks end, in any order (the loop named: this client is not the process's default one)
+        for done, future in enumerate(as_completed(futures, loop=client.loop), start=1):
+            results[index[future.key]] = future.result()
             report(progress, label, done, len(futures))
         return results
 
