@@ -469,6 +469,12 @@ def _(work):
     return ["diagnose", str(camp), "--out", str(work / "out")]
 
 
+for _address in ("localhost", "http://head:8786", "tcp://head", "two words:1"):
+    case(f"option: --scheduler {_address!r}", "--scheduler")(
+        lambda work, a=_address: ["propagate", str(frame_with(work)), "--method", "mc", "--samples", "10",
+                                  "--scheduler", a, "--out", str(work / "out")])
+
+
 @case("propagate: no joint varies", "cov")
 def _(work):
     return ["propagate", str(frame_with(work, lambda d: d["joints"][0].__setitem__("cov", 0.0))),

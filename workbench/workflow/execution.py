@@ -12,6 +12,7 @@ seed the numbers are the same whichever path ran them.
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
@@ -23,6 +24,7 @@ __all__ = ["SCHEDULER_TIMEOUT_S", "mapper"]
 
 SCHEDULER_TIMEOUT_S = 10  # an unreachable --scheduler is said within this time
 RETRIES = 3  # a task whose worker died is run again, up to this many times
+_ADDRESS = re.compile(r"(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:]+\]|[A-Za-z0-9._-]+):\d{1,5}")
 
 
 @contextmanager
@@ -41,6 +43,9 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
 
     cluster = None
     if scheduler is not None:
+        if not _ADDRESS.fullmatch(scheduler):  # refused here: a Client built on it hangs 20 s at exit
+            raise ValueError(f"--scheduler {scheduler}: not a Dask scheduler address; expected tcp://host:8786 "
+                             "(what `dask scheduler` prints)")
         try:
             client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
