@@ -544,16 +544,21 @@ def _(work):
     return _import(work, first, second)
 
 
+def _csv_test(work: Path, sensor: str) -> Path:
+    """A two-line tidy FRF CSV of one test at ``sensor``."""
+    path = work / "t1.csv"
+    path.write_text(f"sensor,frequency_hz,real,imag\n{sensor},1.0,0.1,0.2\n{sensor},2.0,0.2,0.1\n")
+    return path
+
+
 @case("import: CSV without --quantity", "--quantity")
 def _(work):
-    (work / "t1.csv").write_text("sensor,frequency_hz,real,imag\ns1,1.0,0.1,0.2\ns1,2.0,0.2,0.1\n")
-    return _import(work, work / "t1.csv")
+    return _import(work, _csv_test(work, "s1"))
 
 
 @case("import: CSV of a sensor the frame lacks", "'s9'")
 def _(work):
-    (work / "t1.csv").write_text("sensor,frequency_hz,real,imag\ns9,1.0,0.1,0.2\ns9,2.0,0.2,0.1\n")
-    return _import(work, work / "t1.csv", extra=("--quantity", "accelerance"))
+    return _import(work, _csv_test(work, "s9"), extra=("--quantity", "accelerance"))
 
 
 @case("import: design without a test of the files", "no row")

@@ -56,8 +56,7 @@ def _read_file(path: Path, frame: Frame, quantity: str | None) -> tuple[pd.DataF
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
     if path.suffix.lower() in UFF_SUFFIXES:
-        table, found, reference = read_uff(path, frame, quantity, test_id=path.stem)
-        return table, found, reference
+        return read_uff(path, frame, quantity, test_id=path.stem)
     if path.suffix.lower() == ".csv":
         return _csv_frfs(path, frame), None, "force"
     raise ValueError(f"{path}: unknown file type {path.suffix!r}: a universal file ({', '.join(UFF_SUFFIXES)}) "

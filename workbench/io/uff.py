@@ -352,7 +352,7 @@ def _check_directions(dset: dict[str, Any], fail: _Fail, agreed: _Agreement, tid
     ref_dir = int(dset.get("ref_dir", 0))
     if abs(ref_dir) not in DIRECTION_CODES.values():
         fail(f"unknown reference direction {ref_dir} (a planar frame has 1 +X, 2 +Y, 6 +Z rotation)")
-    agreed.excitations.add((int(dset["ref_node"]), abs(ref_dir)) if abs(ref_dir) else (0, 0))
+    agreed.excitations.add((int(dset["ref_node"]), abs(ref_dir)))
     if len(agreed.excitations) > 1 and not agreed.roving:
         fail(f"a second reference (node, direction) {sorted(agreed.excitations)}: a campaign has one excitation")
     if (tid, sensor) in agreed.seen:

@@ -32,6 +32,12 @@ def _where(model: Model, name: str) -> str:
     return f"{model.frame.source}: joint {name!r} cov"
 
 
+def _widest(joints: JointModel) -> tuple[str, float]:
+    """The joint of largest CoV and its CoV."""
+    worst = int(np.argmax(joints.cov))
+    return joints.names[worst], float(joints.cov[worst])
+
+
 def check_cov(model: Model, joints: JointModel, method: str) -> None:
     """Refuse a CoV above `COV_LIMIT` for every method but ``mc``.
 
@@ -42,11 +48,10 @@ def check_cov(model: Model, joints: JointModel, method: str) -> None:
     """
     if method == "mc" or not joints.cov.size:
         return
-    worst = int(np.argmax(joints.cov))
-    cov = float(joints.cov[worst])
+    name, cov = _widest(joints)
     if cov > COV_LIMIT:
         raise ValueError(
-            f"{_where(model, joints.names[worst])}: {cov:g} (joint {joints.names[worst]!r}) is above {COV_LIMIT:g}, "
+            f"{_where(model, name)}: {cov:g} (joint {name!r}) is above {COV_LIMIT:g}, "
             f"where {method} moments part from exact solves (std 16-34 % off at 0.5, up to 6 times at 1.0: "
             "benchmarks/cov_limit.py); use --method mc")
 
@@ -55,10 +60,9 @@ def smr1_cov_warning(model: Model, joints: JointModel, method: str) -> str | Non
     """A warning for SMR1 and Pert2 above `SMR1_COV_WARNING`, or None."""
     if method not in ("smr1", "pert2") or not joints.cov.size:
         return None
-    worst = int(np.argmax(joints.cov))
-    cov = float(joints.cov[worst])
+    name, cov = _widest(joints)
     if cov <= SMR1_COV_WARNING:
         return None
-    return (f"{_where(model, joints.names[worst])}: {cov:g} (joint {joints.names[worst]!r}) is above "
+    return (f"{_where(model, name)}: {cov:g} (joint {name!r}) is above "
             f"{SMR1_COV_WARNING:g}, where {method}'s frequency std is 10-25 % off (benchmarks/cov_limit.py); "
             "--method adaptive refines the modes concerned")

@@ -64,8 +64,8 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
 
 
 def _one_blas_thread(function: Callable[[Any, Any], Any], shared: Any, task: Any) -> Any:
-    """Run a task with one BLAS thread: each worker is one process, and two multithreaded BLAS on
-    two cores thrash (measured: 4 validation cases took 7.3 s each alone, 8.4 s each two at a time).
+    """Run a task with one BLAS thread: each worker is one process, and several multithreaded BLAS
+    on a machine's cores contend (as in the Monte Carlo chunks of `workbench.uq.stochastic`).
     """
     from threadpoolctl import threadpool_limits
 
