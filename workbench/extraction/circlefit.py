@@ -62,21 +62,36 @@ over the radius), the curve's noise level estimated from second differences over
   `WEAK_FACTOR` noise levels (a mode hidden in noise: white noise alone rarely strays beyond
   3 noise levels, while a circle fitted through it can be large and sharp);
 - ``"poor_circle"``: circle error above `POOR_CIRCLE`;
-- ``"close_mode"``: the points miss the one-mode model systematically, not by noise: the misfit
-  RMS exceeds `CLOSE_EXCESS` noise levels, or its lag-1 correlation along frequency exceeds
-  ``CLOSE_CORRELATION / sqrt(n)`` (white noise gives ``0 +- 1/sqrt(n)``, a second mode a smooth
-  misfit, near 1); and the misfit exceeds `CLOSE_FLOOR` radii (not for a weak mode); or, in
-  `fit_modes`, another fitted mode within `CLOSE_BANDWIDTHS` half-power bandwidths;
+- ``"close_mode"``: a second mode is really there. The trigger: the points miss the one-mode
+  model systematically, not by noise (misfit RMS above `CLOSE_EXCESS` noise levels, or its lag-1
+  correlation along frequency above ``CLOSE_CORRELATION / sqrt(n)``: white noise gives
+  ``0 +- 1/sqrt(n)``), by more than `CLOSE_FLOOR` radii, and the mode is not weak. Real curves are
+  never perfect circles (leakage, a slightly nonlinear joint), so the trigger alone proves
+  nothing: a two-pole fit of the band (`workbench.extraction.multimode.second_mode`; over all the
+  curves of the test in `fit_modes`) must then find a significant second pole within
+  `CLOSE_BANDWIDTHS` half-power bandwidths. Also raised by `fit_modes` for two fitted modes that
+  close, and on every mode of a band that holds two (`workbench.extraction.modes`);
 - ``"few_points"``: fewer than `MIN_SIDE_POINTS` points on a side of resonance for the pairs;
 - ``"edge_of_band"``: natural frequency closer to a band edge than a half-power half-width.
+
+95 % intervals (`ModalFit.frequency_ci95_hz`, `ModalFit.damping_ci95`, `_intervals`): from the
+covariance of the joint refinement (step 3), ``s^2 (J^T J)^-1`` with ``s^2`` its residual variance,
+and the Student-t quantile on its residual degrees of freedom; so they widen with the noise, with
+a poor circle and with few lines across the peak. The damping interval spans both the pairwise
+mean and the least-squares ``zeta``, each widened by that half-width (their disagreement is the
+model-form term). Measured coverage: ``tests/test_close_modes.py``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import t as t_dist
+
+from workbench.extraction.circle_geometry import geometric, pair_damping, taubin
+from workbench.extraction.multimode import inverse_normal, noise_level, second_mode
 
 __all__ = [
     "QUANTITIES",
@@ -132,6 +147,8 @@ class ModalFit:
     pairs_used : point pairs averaged for the damping.
     band : (f_lo, f_hi) in Hz.
     flags : subset of ``("close_mode", "weak", "poor_circle", "few_points", "edge_of_band")``.
+    frequency_ci95_hz : (low, high) 95 % interval of the natural frequency, Hz (`_intervals`).
+    damping_ci95 : (low, high) 95 % interval of the damping ratio (`_intervals`).
     """
 
     frequency_hz: float
@@ -147,6 +164,8 @@ class ModalFit:
     pairs_used: int
     band: tuple[float, float]
     flags: tuple[str, ...] = ()
+    frequency_ci95_hz: tuple[float, float] = (float("nan"), float("nan"))
+    damping_ci95: tuple[float, float] = (float("nan"), float("nan"))
 
     def __post_init__(self) -> None:
         unknown = set(self.flags) - set(FLAGS)
@@ -194,6 +213,15 @@ def _check_quantity(quantity: str) -> str:
     return quantity
 
 
+def _check_band(f: np.ndarray, band) -> tuple[float, float]:
+    lo, hi = float(band[0]), float(band[1])
+    inside = (f >= lo) & (f <= hi)
+    if not (hi > lo) or inside.sum() < MIN_BAND_POINTS:
+        raise ValueError(f"band: ({lo}, {hi}) Hz holds {int(inside.sum())} lines, "
+                         f"at least {MIN_BAND_POINTS} are needed")
+    return lo, hi
+
+
 def to_mobility(frequency_hz: np.ndarray, frf: np.ndarray, quantity: str) -> np.ndarray:
     """Convert an FRF to mobility (m/s/N): ``i omega H`` from receptance, ``H / (i omega)`` from
     accelerance. ``frf`` (..., n_freq) complex; accelerance at 0 Hz raises ValueError.
@@ -209,60 +237,11 @@ def to_mobility(frequency_hz: np.ndarray, frf: np.ndarray, quantity: str) -> np.
     return np.asarray(frf, complex)
 
 
-def pair_damping(omega_a, theta_a, omega_b, theta_b, omega_r: float) -> np.ndarray:
-    """Exact viscous damping ratio from a point above (a) and below (b) resonance on the mobility
-    circle of one mode; angles (rad) from the resonance point, seen from the circle's centre.
-
-    ``zeta = [(w_a^2 - w_r^2)/w_a + (w_r^2 - w_b^2)/w_b] / (2 w_r (tan(theta_a/2) + tan(theta_b/2)))``;
-    to first order in the offsets it is Ewins' ``(w_a - w_b) / (w_r (tan(theta_a/2) +
-    tan(theta_b/2)))``. Arguments broadcast; circular frequencies in rad/s.
-    """
-    omega_a, omega_b = np.asarray(omega_a, float), np.asarray(omega_b, float)
-    numerator = (omega_a**2 - omega_r**2) / omega_a + (omega_r**2 - omega_b**2) / omega_b
-    return numerator / (2.0 * omega_r * (np.tan(np.asarray(theta_a) / 2) + np.tan(np.asarray(theta_b) / 2)))
-
-
 # --------------------------------------------------------------------------------------------
 # circle and sweep
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def _taubin(z: np.ndarray) -> tuple[complex, float]:
-    """Algebraic circle fit (Taubin, in Chernov's SVD form) of complex points ``z``."""
-    m = z.mean()
-    x, y = z.real - m.real, z.imag - m.imag
-    zz = x * x + y * y
-    zm = zz.mean()
-    if zm == 0.0:
-        return m, 0.0
-    z0 = (zz - zm) / (2.0 * np.sqrt(zm))
-    _, _, vt = np.linalg.svd(np.column_stack([z0, x, y]), full_matrices=False)
-    a = vt[2].copy()
-    a0 = a[0] / (2.0 * np.sqrt(zm))
-    a3 = -zm * a0
-    if a0 == 0.0:  # points on a line: an "infinite" circle; start from the centroid instead
-        return m, float(np.sqrt(zm))
-    centre = complex(-a[1] / (2 * a0), -a[2] / (2 * a0)) + m
-    radius = float(np.sqrt(max(a[1] ** 2 + a[2] ** 2 - 4 * a0 * a3, 0.0)) / (2 * abs(a0)))
-    return centre, radius
-
-
-def _geometric(z: np.ndarray, centre: complex, radius: float) -> tuple[complex, float]:
-    """Geometric least squares on the radial distances, in scaled coordinates."""
-    scale = max(radius, float(np.abs(z - z.mean()).max()), np.finfo(float).tiny)
-    w = (z - centre) / scale
-
-    def residual(p):
-        return np.hypot(w.real - p[0], w.imag - p[1]) - p[2]
-
-    def jac(p):
-        d = np.maximum(np.hypot(w.real - p[0], w.imag - p[1]), 1e-300)
-        return np.column_stack([-(w.real - p[0]) / d, -(w.imag - p[1]) / d, -np.ones_like(d)])
-
-    sol = least_squares(residual, [0.0, 0.0, radius / scale], jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
-    return centre + scale * complex(sol.x[0], sol.x[1]), float(abs(sol.x[2]) * scale)
 
 
 def _sweep_model(omega, phi0, omega_r, zeta, sense):
@@ -360,8 +339,30 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
     p = sol.x
     t = (p[6:6 + n_trend] + 1j * p[6 + n_trend:]) * scale
     trend = basis @ t if n_trend else np.zeros_like(data)
+    # covariance of (omega_r / w0, log zeta): residual variance on its degrees of freedom, (J^T J)^-1
+    dof = max(2 * omega.size - p.size, 1)
+    cov = (2.0 * sol.cost / dof) * inverse_normal(sol.jac)[4:6, 4:6]
     return (complex(p[0], p[1]) * scale, abs(p[2]) * scale, float(p[3]) + (np.pi if p[2] < 0 else 0.0),
-            float(p[4] * w0), float(np.exp(np.clip(p[5], -30.0, 5.0))), trend, 6 + 2 * n_trend)
+            float(p[4] * w0), float(np.exp(np.clip(p[5], -30.0, 5.0))), trend,
+            (np.sqrt(max(cov[0, 0], 0.0)) * w0, np.sqrt(max(cov[1, 1], 0.0)), dof))
+
+
+def _intervals(f_r: float, zeta: float, zeta_sweep: float,
+               spread: tuple[float, float, int]) -> tuple[tuple[float, float], tuple[float, float]]:
+    """95 % intervals of frequency (Hz) and damping from the joint refinement's covariance
+    (``spread = (sd omega_r rad/s, sd log zeta, dof)``), Student-t on its degrees of freedom.
+
+    The damping interval spans both estimators, the reported pairwise mean ``zeta`` and the
+    least-squares ``zeta_sweep``, each widened by the least-squares half-width (in log): their
+    disagreement is the model-form term (the pairwise mean is the noisier, and differs from the
+    least-squares value when the circle is not one viscous mode's).
+    """
+    sd_omega, sd_log, dof = spread
+    t = float(t_dist.ppf(0.975, dof))
+    half_f = t * sd_omega / (2.0 * np.pi)
+    half_log = min(t * sd_log, 50.0)
+    return ((float(f_r - half_f), float(f_r + half_f)),
+            (float(min(zeta, zeta_sweep) * np.exp(-half_log)), float(max(zeta, zeta_sweep) * np.exp(half_log))))
 
 
 def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "accelerance") -> ModalFit:
@@ -391,18 +392,36 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
     if h.shape[0] != 1:
         raise ValueError(f"frf: expected one curve of {f.size} lines, got shape {np.shape(frf)}")
     _check_quantity(quantity)
-    lo, hi = float(band[0]), float(band[1])
-    inside = (f >= lo) & (f <= hi)
-    if not (hi > lo) or inside.sum() < MIN_BAND_POINTS:
-        raise ValueError(f"band: ({lo}, {hi}) Hz holds {int(inside.sum())} lines, "
-                         f"at least {MIN_BAND_POINTS} are needed")
-    omega = 2.0 * np.pi * f[inside]
-    data = to_mobility(f[inside], h[0, inside], quantity)
+    fit, triggered = _circle_fit(f, h[0], _check_band(f, band), quantity)
+    if not triggered:
+        return fit
+    # the misfit is systematic: a second mode, or a curve that is not a perfect circle?
+    found = _second_mode_near(f, h, fit, quantity)
+    return replace(fit, flags=tuple(x for x in FLAGS if x in fit.flags or (x == "close_mode" and found)))
 
-    centre, radius = _geometric(data, *_taubin(data))
+
+def _second_mode_near(f: np.ndarray, h: np.ndarray, fit: ModalFit, quantity: str) -> bool:
+    """True when a two-pole fit of ``fit.band`` over the curves ``h`` (n_curves, n_freq) finds a
+    second mode (`multimode.second_mode`) within `CLOSE_BANDWIDTHS` half-power bandwidths.
+    """
+    _, two, accepted = second_mode(f, h, fit.band, quantity, noise_level(h), (fit.frequency_hz, fit.damping_ratio))
+    bandwidth = 2.0 * float(np.max(two.damping_ratio * two.frequency_hz))
+    return accepted and float(np.ptp(two.frequency_hz)) < CLOSE_BANDWIDTHS * bandwidth
+
+
+def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantity: str) -> tuple[ModalFit, bool]:
+    """`circle_fit` of the checked curve ``h`` (n_freq,) without the second-mode test; returns the fit
+    and whether its misfit is systematic (the trigger of that test).
+    """
+    lo, hi = band
+    inside = (f >= lo) & (f <= hi)
+    omega = 2.0 * np.pi * f[inside]
+    data = to_mobility(f[inside], h[inside], quantity)
+
+    centre, radius = geometric(data, *taubin(data))
     phi0, omega_r, zeta_sweep, sense = _fit_sweep(omega, np.angle(data - centre))
     n_trend = int(np.clip((omega.size - 6) // 4, 0, 3))  # 2n real equations, 6 + 2 n_trend unknowns
-    centre, radius, phi0, omega_r, zeta_sweep, trend, n_params = _refine(
+    centre, radius, phi0, omega_r, zeta_sweep, trend, spread = _refine(
         omega, data, centre, radius, phi0, omega_r, zeta_sweep, sense, n_trend)
     y = data - trend
     phi = np.angle(y - centre)
@@ -423,7 +442,7 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
     circle_error = float(np.sqrt(np.mean(radial**2)) / radius) if radius > 0 else np.inf
     # the curve's own noise, independent of the fit, in mobility units at resonance
     to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
-    noise = float(noise_level(h)[0]) * to_mob
+    noise = float(noise_level(h[None, :])[0]) * to_mob
     power = float(np.sum(np.abs(misfit) ** 2))
     misfit_rms = np.sqrt(power / n)
     # a second mode leaves a misfit larger than the noise, or smooth (correlated) along frequency
@@ -434,8 +453,6 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
     # a degenerate circle through one noisy point can be large: the points' own span must be too
     span = float(np.abs(y - (np.median(y.real) + 1j * np.median(y.imag))).max())
     weak = min(2.0 * radius, span) < WEAK_FACTOR * noise
-    if systematic and misfit_rms > CLOSE_FLOOR * radius and not weak:
-        flags.append("close_mode")
     if weak:
         flags.append("weak")
     if circle_error > POOR_CIRCLE:
@@ -447,7 +464,8 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
     if not (lo + half_width <= f_r <= hi - half_width):
         flags.append("edge_of_band")
 
-    return ModalFit(
+    f_ci, z_ci = _intervals(f_r, zeta, zeta_sweep, spread)
+    fit = ModalFit(
         frequency_hz=float(f_r),
         damping_ratio=float(zeta),
         damping_scatter=float(np.std(estimates)) if estimates.size else float("nan"),
@@ -461,19 +479,8 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
         pairs_used=int(estimates.size),
         band=(lo, hi),
         flags=tuple(flags),
+        frequency_ci95_hz=f_ci,
+        damping_ci95=z_ci,
     )
-
-
-# --------------------------------------------------------------------------------------------
-# bands, several curves, combination
-
-def noise_level(frfs) -> np.ndarray:
-    """Noise RMS of each curve, (n_curves,), from second differences along frequency: for white
-    circular noise of ``E|n|^2 = sigma^2``, ``|n_(i+1) - 2 n_i + n_(i-1)|`` is Rayleigh with median
-    ``sigma sqrt(6 ln 2)``; the median ignores the few large second differences at sharp peaks.
-    On a noise-free curve it measures the curve's own smoothness instead.
-    """
-    h = np.atleast_2d(np.asarray(frfs, complex))
-    second = np.abs(h[:, 2:] - 2.0 * h[:, 1:-1] + h[:, :-2])
-    sigma = np.median(second, axis=1) / np.sqrt(6.0 * np.log(2.0))
-    return np.maximum(sigma, np.finfo(float).tiny * np.abs(h).max(axis=1) + np.finfo(float).tiny)
+    # the trigger of the second-mode test: a systematic misfit beyond CLOSE_FLOOR radii
+    return fit, bool(systematic and misfit_rms > CLOSE_FLOOR * radius and not weak)

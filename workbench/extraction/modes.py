@@ -8,27 +8,34 @@ band, `combine` merges the curves of one mode with weights from their fit qualit
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.signal import find_peaks
+from scipy.stats import t as t_dist
 
 from workbench.extraction.circlefit import (
     CLOSE_BANDWIDTHS,
     FLAGS,
     MIN_BAND_POINTS,
+    POOR_CIRCLE,
+    WEAK_FACTOR,
     WEIGHT_FLOOR,
     ModalFit,
+    _check_band,
     _check_frequency,
     _check_frfs,
     _check_quantity,
+    _circle_fit,
+    _second_mode_near,
     circle_fit,
     noise_level,
 )
+from workbench.extraction.multimode import PoleFit, pole_fit, second_mode
 from workbench.model.modal import add_noise, modal_superposition
 from workbench.tasks import Mapper, serial_mapper
 
-__all__ = ["ModeEstimate", "find_mode_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]
+__all__ = ["ModeEstimate", "find_mode_bands", "split_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]
 
 
 @dataclass(frozen=True)
@@ -43,6 +50,8 @@ class ModeEstimate:
     weights : (n_curves,) normalised weights, 0 for excluded (flagged) curves.
     flags : flags of the curves used, plus ``"close_mode"`` if a curve raised it alone.
     fits : the per-curve fits.
+    frequency_ci95_hz : (low, high) 95 % interval of ``frequency_hz``, Hz (`combine`).
+    damping_ci95 : (low, high) 95 % interval of ``damping_ratio`` (`combine`).
     """
 
     frequency_hz: float
@@ -53,6 +62,8 @@ class ModeEstimate:
     weights: tuple[float, ...]
     flags: tuple[str, ...]
     fits: tuple[ModalFit, ...] = field(repr=False, default=())
+    frequency_ci95_hz: tuple[float, float] = (float("nan"), float("nan"))
+    damping_ci95: tuple[float, float] = (float("nan"), float("nan"))
 
     @property
     def ok(self) -> bool:
@@ -140,28 +151,107 @@ def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_promine
     return bands
 
 
+def split_bands(frequency_hz: list, frfs: list, quantity: str, bands) -> list[tuple[float, float]]:
+    """The bands again, a band listed twice where it holds two modes.
+
+    In every test, the curves of each band are fitted with one pole and with two
+    (`workbench.extraction.multimode.second_mode`: poles common to the test's curves); a band whose
+    second pole is accepted in at least half of the tests holds two modes, and is listed twice
+    (band k and k + 1: its lower and upper mode, `fit_modes` then fits both at once). Where the band
+    does not, the same is tried on the band widened by half its width each side (up to its
+    neighbours): `find_mode_bands` drops a peak of less than ``min_prominence`` on the shoulder of
+    a larger one (measured: 0.2 decades for a pair 3 % apart at 0.5 % damping), and its band then
+    misses that mode; the widened band is the one listed twice.
+
+    Parameters
+    ----------
+    frequency_hz : per test, (n_freq,) Hz.
+    frfs : per test, (n_curves, n_freq) complex FRFs in the unit of ``quantity``.
+    quantity : receptance, mobility or accelerance.
+    bands : (f_lo, f_hi) Hz per band, increasing (`find_mode_bands`).
+
+    Returns
+    -------
+    list of (f_lo, f_hi), increasing, each band once or twice.
+    """
+    bands = [(float(lo), float(hi)) for lo, hi in bands]
+    out = []
+    for n, (lo, hi) in enumerate(bands):
+        floor = bands[n - 1][1] if n > 0 else -np.inf
+        ceiling = bands[n + 1][0] if n + 1 < len(bands) else np.inf
+        wide = (max(lo - 0.5 * (hi - lo), floor), min(hi + 0.5 * (hi - lo), ceiling))
+        for band in ((lo, hi), wide):
+            if _holds_two(frequency_hz, frfs, quantity, band):
+                out.extend([band, band])
+                break
+        else:
+            out.append((lo, hi))
+    return out
+
+
+def _holds_two(frequency_hz: list, frfs: list, quantity: str, band: tuple[float, float]) -> bool:
+    """True when at least half of the tests accept a second pole in ``band`` (`split_bands`)."""
+    votes = []
+    for f, h in zip(frequency_hz, frfs):
+        f, h = np.asarray(f, float), np.atleast_2d(h)
+        inside = (f >= band[0]) & (f <= band[1])
+        if inside.sum() < MIN_BAND_POINTS or f[inside][0] <= 0.0:
+            continue
+        votes.append(second_mode(f, h, band, quantity, noise_level(h), _peak_start(f[inside], h[:, inside]))[2])
+    return bool(votes) and 2 * sum(votes) >= len(votes)
+
+
+def _peak_start(f: np.ndarray, h: np.ndarray) -> tuple[float, float]:
+    """(frequency Hz, damping) of the summed |H| peak of a band, from its half-power width."""
+    s = np.sum(np.abs(h) / noise_level(h)[:, None], axis=0)
+    k = int(np.argmax(s))
+    lo, hi = _half_power_edges(s, k)
+    lines = np.arange(f.size, dtype=float)
+    width = float(np.interp(hi, lines, f) - np.interp(lo, lines, f))
+    return float(f[k]), float(np.clip(width / (2.0 * f[k]), 1e-4, 0.1))
+
+
 def fit_modes(frequency_hz, frfs, quantity: str, bands=None, count: int | None = None) -> list[list[ModalFit]]:
-    """Circle fit of every band on every curve.
+    """Circle fit of every band on every curve; a multi-mode fit where a band is listed more than once.
 
     Parameters
     ----------
     frequency_hz : (n_freq,) Hz.
     frfs : (n_curves, n_freq) complex FRFs in the unit of ``quantity``.
     quantity : receptance, mobility or accelerance.
-    bands : list of (f_lo, f_hi) Hz; ``None`` finds them with `find_mode_bands` (``count``).
+    bands : list of (f_lo, f_hi) Hz; ``None`` finds them with `find_mode_bands` (``count``) and
+        `split_bands`. A band listed ``m`` times in a row holds ``m`` modes: they are fitted at once
+        (`workbench.extraction.multimode.pole_fit`, poles common to the curves), and every fit of
+        theirs carries ``"close_mode"``.
 
     Returns
     -------
-    ``fits[band][curve]``. Besides `circle_fit`'s own flags, both modes of two neighbouring bands
-    whose frequencies (median over their unflagged curves) are closer than `CLOSE_BANDWIDTHS`
-    half-power bandwidths ``2 zeta f`` get ``"close_mode"``.
+    ``fits[mode][curve]``, one row per entry of ``bands``. Besides `circle_fit`'s own flags: where a
+    band's circle misfit is systematic on some curve, ``"close_mode"`` only when a two-pole fit over
+    all the curves finds a second mode (`circlefit._second_mode_near`); and both modes of two
+    neighbouring bands whose frequencies (median over their unflagged curves) are closer than
+    `CLOSE_BANDWIDTHS` half-power bandwidths ``2 zeta f`` get ``"close_mode"``.
     """
     f = _check_frequency(frequency_hz)
     h = _check_frfs(frfs, f.size)
     _check_quantity(quantity)
     if bands is None:
-        bands = find_mode_bands(f, h, count=count)
-    fits = [[circle_fit(f, curve, band, quantity) for curve in h] for band in bands]
+        bands = split_bands([f], [h], quantity, find_mode_bands(f, h, count=count))
+    bands = [_check_band(f, band) for band in bands]
+    fits: list[list[ModalFit]] = []
+    k = 0
+    while k < len(bands):
+        m = 1
+        while k + m < len(bands) and bands[k + m] == bands[k]:
+            m += 1
+        if m > 1:
+            fits.extend(_multimode_rows(f, h, bands[k], quantity, m))
+        else:
+            row, triggered = zip(*[_circle_fit(f, curve, bands[k], quantity) for curve in h])
+            best = row[int(np.argmin([x.circle_error for x in row]))]
+            pair = any(triggered) and _second_mode_near(f, h, best, quantity)
+            fits.append([_with_flag(x, "close_mode") if pair else x for x in row])
+        k += m
     # neighbours, from the bands with at least one unflagged fit (the others are flagged already)
     centres = {i: (float(np.median([x.frequency_hz for x in row if x.ok])),
                    float(np.median([x.damping_ratio for x in row if x.ok])))
@@ -175,10 +265,49 @@ def fit_modes(frequency_hz, frfs, quantity: str, bands=None, count: int | None =
     return [[_with_flag(x, "close_mode") if close[i] else x for x in row] for i, row in enumerate(fits)]
 
 
+def _multimode_rows(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantity: str,
+                    m: int) -> list[list[ModalFit]]:
+    """``m`` modes of one band fitted at once, as `ModalFit` rows (one per mode, lowest first)."""
+    noise = noise_level(h)
+    inside = (f >= band[0]) & (f <= band[1])
+    start = _peak_start(f[inside], h[:, inside])
+    if m == 2:
+        fit = second_mode(f, h, band, quantity, noise, start)[1]
+    else:  # spread the starts over the middle half of the band
+        lo, hi = 0.75 * band[0] + 0.25 * band[1], 0.25 * band[0] + 0.75 * band[1]
+        fit = pole_fit(f, h, band, quantity, noise, [[(x, start[1] / m) for x in np.linspace(lo, hi, m)]])
+    return [[_pole_mode(fit, r, c, noise[c], quantity, int(inside.sum())) for c in range(h.shape[0])]
+            for r in range(m)]
+
+
+def _pole_mode(fit: PoleFit, r: int, c: int, noise: float, quantity: str, points: int) -> ModalFit:
+    """Pole ``r`` of a multi-mode fit on curve ``c`` as a `ModalFit` (mobility units at resonance)."""
+    fr, zeta = float(fit.frequency_hz[r]), float(fit.damping_ratio[r])
+    to_mob = (2.0 * np.pi * fr) ** (1 - {"receptance": 0, "mobility": 1, "accelerance": 2}[quantity])
+    peak = float(fit.peak_noise[c, r])
+    # circle error: the curve's RMS misfit over the mode's radius, both in noise levels
+    error = float(fit.misfit_noise[c] / (0.5 * peak)) if peak > 0 else np.inf
+    flags = {"close_mode"}
+    if peak < WEAK_FACTOR:
+        flags.add("weak")
+    if error > POOR_CIRCLE:
+        flags.add("poor_circle")
+    if not fit.band[0] + zeta * fr <= fr <= fit.band[1] - zeta * fr:
+        flags.add("edge_of_band")
+    return ModalFit(
+        frequency_hz=fr, damping_ratio=zeta, damping_scatter=0.0,
+        modal_constant=complex(fit.modal_constants[c, r]), residual_lower=complex(fit.residual_lower[c]),
+        residual_upper=complex(fit.residual_upper[c]), circle_error=error, noise=noise * to_mob,
+        diameter=peak * noise * to_mob, points_used=points, pairs_used=0, band=fit.band,
+        flags=tuple(x for x in FLAGS if x in flags),
+        frequency_ci95_hz=(float(fit.frequency_ci95_hz[r, 0]), float(fit.frequency_ci95_hz[r, 1])),
+        damping_ci95=(float(fit.damping_ci95[r, 0]), float(fit.damping_ci95[r, 1])))
+
+
 def _with_flag(fit: ModalFit, flag: str) -> ModalFit:
     if flag in fit.flags:
         return fit
-    return ModalFit(**{**fit.__dict__, "flags": fit.flags + (flag,)})
+    return replace(fit, flags=tuple(x for x in FLAGS if x in fit.flags or x == flag))
 
 
 def combine(fits) -> ModeEstimate:
@@ -190,6 +319,12 @@ def combine(fits) -> ModeEstimate:
     flags are those of the fits used, plus ``"close_mode"`` if any fit raised it and nothing else
     (two close modes are a property of the structure, not of a sensor; a fit that failed for
     other reasons as well is no evidence of them).
+
+    95 % intervals (`_combined_interval`): the larger of the per-curve intervals combined as
+    independent (``sqrt(sum w^2 h^2)``, ``h`` each side's half-width; damping in log) and the
+    standard error of the weighted mean from the scatter between curves (Student-t on the
+    effective number of curves minus one); fits that share one estimate (a multi-mode fit's common
+    pole) count once.
     """
     fits = tuple(fits)
     if not fits:
@@ -208,12 +343,37 @@ def combine(fits) -> ModeEstimate:
     flags = {flag for x, u in zip(fits, use) if u for flag in x.flags}
     if any(x.flags == ("close_mode",) for x in fits):  # a clean fit but for its neighbour
         flags.add("close_mode")
+    f_ci = np.array([x.frequency_ci95_hz for x in fits])
+    z_ci = np.log(np.array([x.damping_ci95 for x in fits]))
+    f_lo, f_hi = _combined_interval(w, fr, f_ci)
+    z_lo, z_hi = np.minimum(_combined_interval(w, np.log(ze), z_ci), 50.0)
     return ModeEstimate(
         frequency_hz=f_mean, damping_ratio=z_mean,
         frequency_scatter=float(np.sqrt(w @ (fr - f_mean) ** 2)),
         damping_scatter=float(np.sqrt(w @ (ze - z_mean) ** 2)),
         curves_used=int(np.count_nonzero(w)), weights=tuple(float(v) for v in w),
-        flags=tuple(flag for flag in FLAGS if flag in flags), fits=fits)
+        flags=tuple(flag for flag in FLAGS if flag in flags), fits=fits,
+        frequency_ci95_hz=(f_mean - f_lo, f_mean + f_hi),
+        damping_ci95=(z_mean * float(np.exp(-z_lo)), z_mean * float(np.exp(z_hi))))
+
+
+def _combined_interval(w: np.ndarray, x: np.ndarray, ci: np.ndarray) -> tuple[float, float]:
+    """Half-widths (below, above) of the weighted mean ``w @ x`` (`combine`); ``ci`` (n, 2)."""
+    keep = w > 0
+    w, x, ci = w[keep], x[keep], ci[keep]
+    _, first = np.unique(np.column_stack([x, ci]), axis=0, return_index=True)
+    if first.size < x.size:  # fits sharing one estimate: one estimate, its weight summed
+        groups = np.unique(np.column_stack([x, ci]), axis=0, return_inverse=True)[1].ravel()
+        w = np.bincount(groups, weights=w)
+        x, ci = x[first], ci[first]
+    below, above = x - ci[:, 0], ci[:, 1] - x
+    half = np.array([np.sqrt(w**2 @ below**2), np.sqrt(w**2 @ above**2)])
+    n_eff = 1.0 / float(w @ w)
+    if x.size > 1 and n_eff >= 2.0:  # below two curves' worth, the scatter says nothing
+        mean = float(w @ x)
+        sd = np.sqrt(float(w @ (x - mean) ** 2) * n_eff / (n_eff - 1.0))
+        half = np.maximum(half, float(t_dist.ppf(0.975, n_eff - 1.0)) * sd / np.sqrt(n_eff))
+    return float(half[0]), float(half[1])
 
 
 def _fit_test(shared: tuple, task: tuple) -> list[ModeEstimate]:
@@ -232,13 +392,16 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
     frequency_hz : test id -> (n_freq,) Hz.
     frfs : test id -> (n_sensors, n_freq) complex FRFs in the unit of ``quantity``.
     bands : (f_lo, f_hi) Hz per mode, or None to find them (`find_mode_bands` on all the curves
-        of all the tests when they share one frequency axis, else on the first test's curves).
+        of all the tests when they share one frequency axis, else on the first test's curves; then
+        `split_bands`: a band that holds two modes in most tests is listed twice). A band listed
+        twice is fitted with two poles at once (`fit_modes`).
     count : keep the ``count`` lowest modes found.
     mapper : runs the tests' fits (`workbench.tasks.Mapper`); default, one after the other here.
 
     Returns
     -------
-    bands : the bands used, increasing; band k is mode k + 1 in every test.
+    bands : the bands used, increasing; band k is mode k + 1 in every test (a band listed twice
+        gives its lower mode, then its upper one).
     estimates : test id -> one `ModeEstimate` per band (its flags say where not to trust it).
     """
     tests = list(frfs)
@@ -248,7 +411,8 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
         axis = np.asarray(frequency_hz[tests[0]], float)
         shared = all(np.array_equal(np.asarray(frequency_hz[t], float), axis) for t in tests)
         curves = np.concatenate([np.atleast_2d(frfs[t]) for t in tests]) if shared else np.atleast_2d(frfs[tests[0]])
-        bands = find_mode_bands(axis, curves)
+        bands = split_bands([frequency_hz[t] for t in tests], [frfs[t] for t in tests], quantity,
+                            find_mode_bands(axis, curves))
     # the lowest modes, not the most prominent: mode k must be the k-th mode in every use
     bands = sorted((float(lo), float(hi)) for lo, hi in bands)[:count]
     run = mapper or serial_mapper()

@@ -1,0 +1,60 @@
+"""Circle through complex points (the Nyquist plot of one mode's mobility, `circlefit`): an algebraic
+start (Taubin's fit, in Chernov's SVD form) refined by geometric least squares on the radial
+distances; and the exact viscous damping from two points' angles on it (`pair_damping`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares
+
+__all__ = ["taubin", "geometric", "pair_damping"]
+
+
+def taubin(z: np.ndarray) -> tuple[complex, float]:
+    """Algebraic circle fit (Taubin, in Chernov's SVD form) of complex points ``z``."""
+    m = z.mean()
+    x, y = z.real - m.real, z.imag - m.imag
+    zz = x * x + y * y
+    zm = zz.mean()
+    if zm == 0.0:
+        return m, 0.0
+    z0 = (zz - zm) / (2.0 * np.sqrt(zm))
+    _, _, vt = np.linalg.svd(np.column_stack([z0, x, y]), full_matrices=False)
+    a = vt[2].copy()
+    a0 = a[0] / (2.0 * np.sqrt(zm))
+    a3 = -zm * a0
+    if a0 == 0.0:  # points on a line: an "infinite" circle; start from the centroid instead
+        return m, float(np.sqrt(zm))
+    centre = complex(-a[1] / (2 * a0), -a[2] / (2 * a0)) + m
+    radius = float(np.sqrt(max(a[1] ** 2 + a[2] ** 2 - 4 * a0 * a3, 0.0)) / (2 * abs(a0)))
+    return centre, radius
+
+
+def geometric(z: np.ndarray, centre: complex, radius: float) -> tuple[complex, float]:
+    """Geometric least squares on the radial distances, in scaled coordinates."""
+    scale = max(radius, float(np.abs(z - z.mean()).max()), np.finfo(float).tiny)
+    w = (z - centre) / scale
+
+    def residual(p):
+        return np.hypot(w.real - p[0], w.imag - p[1]) - p[2]
+
+    def jac(p):
+        d = np.maximum(np.hypot(w.real - p[0], w.imag - p[1]), 1e-300)
+        return np.column_stack([-(w.real - p[0]) / d, -(w.imag - p[1]) / d, -np.ones_like(d)])
+
+    sol = least_squares(residual, [0.0, 0.0, radius / scale], jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
+    return centre + scale * complex(sol.x[0], sol.x[1]), float(abs(sol.x[2]) * scale)
+
+
+def pair_damping(omega_a, theta_a, omega_b, theta_b, omega_r: float) -> np.ndarray:
+    """Exact viscous damping ratio from a point above (a) and below (b) resonance on the mobility
+    circle of one mode; angles (rad) from the resonance point, seen from the circle's centre.
+
+    ``zeta = [(w_a^2 - w_r^2)/w_a + (w_r^2 - w_b^2)/w_b] / (2 w_r (tan(theta_a/2) + tan(theta_b/2)))``;
+    to first order in the offsets it is Ewins' ``(w_a - w_b) / (w_r (tan(theta_a/2) +
+    tan(theta_b/2)))``. Arguments broadcast; circular frequencies in rad/s.
+    """
+    omega_a, omega_b = np.asarray(omega_a, float), np.asarray(omega_b, float)
+    numerator = (omega_a**2 - omega_r**2) / omega_a + (omega_r**2 - omega_b**2) / omega_b
+    return numerator / (2.0 * omega_r * (np.tan(np.asarray(theta_a) / 2) + np.tan(np.asarray(theta_b) / 2)))
