@@ -29,6 +29,7 @@ __all__ = [
     "DEGENERATE_GAP",
     "shared_eigenvalues",
     "modal_superposition",
+    "modal_magnitude",
     "modal_frf",
     "add_noise",
     "frame_frf",
@@ -233,6 +234,25 @@ def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return cross / np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
 
 
+def _receptance_parts(frequency_hz, natural_hz, damping_ratios, constants, dtype) -> tuple[np.ndarray, np.ndarray]:
+    """Real and imaginary parts of ``sum_r A_r / (omega_r^2 - omega^2 + 2 i zeta_r omega_r omega)``.
+
+    In real arithmetic, ``A (a - i b) / (a^2 + b^2)`` with ``a = omega_r^2 - omega^2`` and ``b = 2 zeta_r
+    omega_r omega``: a complex division costs four times as much, and the batched magnitudes of a
+    10 000-draw FRF band are float32 (`modal_magnitude`).
+    """
+    omega = (2.0 * np.pi * np.asarray(frequency_hz, float)).astype(dtype)
+    wr = 2.0 * np.pi * np.asarray(natural_hz, float)
+    zeta = np.asarray(damping_ratios, float)
+    if zeta.shape not in (wr.shape, wr.shape[-1:]):
+        raise ValueError(f"damping_ratios: expected {wr.shape[-1]} values, got shape {zeta.shape}")
+    a = (wr**2).astype(dtype)[..., :, None] - omega**2
+    b = (2.0 * zeta * wr).astype(dtype)[..., :, None] * omega
+    d = a * a + b * b
+    c = np.atleast_2d(np.asarray(constants)).astype(dtype)
+    return c @ (a / d), -(c @ (b / d))
+
+
 def modal_superposition(frequency_hz: np.ndarray, natural_hz: np.ndarray, damping_ratios: np.ndarray,
                         constants: np.ndarray, quantity: str = "receptance") -> np.ndarray:
     """FRFs from modal parameters: ``sum_r A_r / (omega_r^2 - omega^2 + 2 i zeta_r omega_r omega)``.
@@ -240,29 +260,52 @@ def modal_superposition(frequency_hz: np.ndarray, natural_hz: np.ndarray, dampin
     Parameters
     ----------
     frequency_hz : (n_freq,) Hz.
-    natural_hz, damping_ratios : (n_modes,) natural frequencies (Hz) and modal damping ratios.
-    constants : (n_curves, n_modes) receptance modal constants ``A_r = phi_jr phi_kr`` (1/kg for
-        mass-normalised shapes).
+    natural_hz : (n_modes,) natural frequencies, Hz, or (n_samples, n_modes) for a batch of samples.
+    damping_ratios : (n_modes,) modal damping ratios (the same for every sample of a batch), or the
+        shape of ``natural_hz``.
+    constants : (n_curves, n_modes) real receptance modal constants ``A_r = phi_jr phi_kr`` (1/kg for
+        mass-normalised shapes), or (n_samples, n_curves, n_modes) for a batch; complex constants
+        (fitted ones) are taken as they are.
     quantity : receptance (m/N), or times ``i omega`` for mobility, ``-omega^2`` for accelerance.
 
     Returns
     -------
-    (n_curves, n_freq) complex array.
+    (n_curves, n_freq) complex array, or (n_samples, n_curves, n_freq) for a batch.
     """
     if quantity not in QUANTITIES:
         raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+    if np.iscomplexobj(constants):  # a complex A: both parts through the real form
+        re_re, re_im = _receptance_parts(frequency_hz, natural_hz, damping_ratios, np.real(constants), float)
+        im_re, im_im = _receptance_parts(frequency_hz, natural_hz, damping_ratios, np.imag(constants), float)
+        h = (re_re - im_im) + 1j * (re_im + im_re)
+    else:
+        real, imag = _receptance_parts(frequency_hz, natural_hz, damping_ratios, constants, float)
+        h = real + 1j * imag
     omega = 2.0 * np.pi * np.asarray(frequency_hz, float)
-    wr = 2.0 * np.pi * np.asarray(natural_hz, float)
-    zeta = np.asarray(damping_ratios, float)
-    if zeta.shape != wr.shape:
-        raise ValueError(f"damping_ratios: expected {wr.size} values, got shape {zeta.shape}")
-    denominator = wr[:, None] ** 2 - omega[None, :] ** 2 + 2j * zeta[:, None] * wr[:, None] * omega[None, :]
-    h = np.atleast_2d(constants) @ (1.0 / denominator)
     if quantity == "mobility":
         return h * (1j * omega)
     if quantity == "accelerance":
         return h * (-(omega**2))
     return h
+
+
+def modal_magnitude(frequency_hz: np.ndarray, natural_hz: np.ndarray, damping_ratios: np.ndarray,
+                    constants: np.ndarray, quantity: str = "receptance") -> np.ndarray:
+    """``|H|`` of `modal_superposition` for a batch of real modal constants, in float32.
+
+    The shapes are `modal_superposition`'s; float32 keeps 7 significant digits, far below the
+    sampling error of a band of draws, at half the memory traffic.
+    """
+    if quantity not in QUANTITIES:
+        raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
+    real, imag = _receptance_parts(frequency_hz, natural_hz, damping_ratios, constants, np.float32)
+    magnitude = np.hypot(real, imag, out=real)
+    omega = (2.0 * np.pi * np.asarray(frequency_hz, float)).astype(np.float32)
+    if quantity == "mobility":
+        magnitude *= omega
+    elif quantity == "accelerance":
+        magnitude *= omega * omega
+    return magnitude
 
 
 def modal_frf(modes: Modes, frequency_hz: np.ndarray, response_dofs: np.ndarray, excitation_dof: int,

@@ -1,0 +1,119 @@
+"""Reduced-basis Monte Carlo: Rayleigh-Ritz of every joint draw on SMR2's basis.
+
+SMR2 (paper eq. 7) moves each eigenvector to first order, ``phi_k + sum_j dphi_k/dgamma_j
+(gamma_j - 1)``: its basis is the nominal modes and their joint sensitivities (Nelson's
+derivatives, `workbench.uq.smr.eigenvector_derivatives`). Here the whole span of that basis is
+kept, made mass-orthonormal once, and every draw of the joint moduli is solved in it exactly::
+
+    V^T K(gamma) V x = lambda x,   V^T K(gamma) V = V^T K_rest V + sum_j gamma_j V^T K_j V   (eq. 4)
+
+a dense eigenproblem of a few tens of unknowns instead of the model's size. The Ritz values are
+upper bounds of the eigenvalues and, since the basis holds SMR2's first-order vectors, their error
+is of second order in SMR2's vector error: measured against full solves on the paper's frames
+(benchmarks/frf_band_speed.py, tests/test_prediction.py), below 1e-6 relative at joint CoVs up to
+0.22, where SMR2's own Rayleigh quotient per mode is off by up to 6e-3 in the tails. Each draw's
+Ritz modes are paired with the nominal modes by MAC, one to one, as exact solves are
+(`workbench.uq.stochastic.track_modes`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from threadpoolctl import threadpool_limits
+
+from workbench.model.assembly import Model, joint_energies
+from workbench.model.modal import Modes, shared_eigenvalues
+from workbench.uq.smr import Sensitivities, eigenvector_derivatives
+from workbench.uq.stochastic import JointModel
+
+__all__ = ["ReducedBasis", "reduced_basis", "reduced_modes", "RELATIVE_RANK"]
+
+RELATIVE_RANK = 1e-10  # basis directions whose mass-Gram eigenvalue is below this (relative) are dependent
+BATCH = 2000  # draws solved per stacked eigen-decomposition (memory: BATCH m^2 doubles)
+
+
+@dataclass(frozen=True)
+class ReducedBasis:
+    """SMR2's basis, mass-orthonormal, and the model's matrices projected on it.
+
+    Attributes
+    ----------
+    basis : (n_dof, m) ``V`` with ``V^T M V = I``.
+    rest : (m, m) ``V^T K_rest V``, N/m per unit modal mass.
+    joints : (n_joints, m, m) ``V^T K_j V``, each joint at its mean modulus.
+    nominal : (m, n_modes) reduced coordinates ``V^T M phi_k`` of the nominal modes.
+    """
+
+    basis: np.ndarray
+    rest: np.ndarray
+    joints: np.ndarray
+    nominal: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Number of basis vectors ``m``."""
+        return int(self.basis.shape[1])
+
+
+def reduced_basis(model: Model, nominal: Modes, joints: JointModel) -> ReducedBasis:
+    """SMR2's basis for ``nominal``: its modes and their sensitivities to the random joints (eq. 7).
+
+    Raises
+    ------
+    ValueError
+        Two of the nominal modes share an eigenvalue (no Nelson derivative exists there).
+    """
+    if shared_eigenvalues(nominal, nominal.count):
+        raise ValueError("reduced basis: nominal modes share an eigenvalue; Nelson's derivatives need "
+                         "distinct ones (use exact solves)")
+    rest, per_joint = joint_energies(model, nominal.shapes)
+    sens = Sensitivities(nominal, rest, per_joint.T)
+    random = np.flatnonzero(joints.random)
+    derivatives = eigenvector_derivatives(model, sens, np.arange(nominal.count), random)  # (K, n, r)
+    raw = np.concatenate([nominal.shapes, derivatives.transpose(1, 0, 2).reshape(model.size, -1)], axis=1)
+    # mass-orthonormal span: the derivatives of modes sharing a joint zone are nearly dependent
+    gram = raw.T @ (model.mass @ raw)
+    values, vectors = np.linalg.eigh(0.5 * (gram + gram.T))
+    keep = values > RELATIVE_RANK * values.max()
+    basis = raw @ (vectors[:, keep] / np.sqrt(values[keep]))
+    mass_basis = model.mass @ basis
+    projected = np.array([basis.T @ (k @ basis) for k in (model.stiffness_rest, *model.stiffness_joints)])
+    projected = 0.5 * (projected + projected.transpose(0, 2, 1))
+    return ReducedBasis(basis, projected[0], projected[1:], mass_basis.T @ nominal.shapes)
+
+
+def reduced_modes(reduced: ReducedBasis, gammas: np.ndarray, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each draw's modes by Rayleigh-Ritz on ``reduced``, paired with the nominal modes by MAC.
+
+    Parameters
+    ----------
+    reduced : `reduced_basis` of the model.
+    gammas : (n_draws, n_joints) joint scales ``gamma``.
+    dofs : (n,) free-dof indices where the shapes are wanted.
+
+    Returns
+    -------
+    natural_hz : (n_draws, n_modes) natural frequencies, Hz, column k paired with nominal mode k.
+    shapes : (n_draws, n, n_modes) mass-normalised mode shapes at ``dofs``.
+    """
+    count = reduced.nominal.shape[1]
+    candidates = min(reduced.size, count + 4)  # a mode moving up past its neighbour is still found
+    at_dofs = reduced.basis[np.asarray(dofs, int)]
+    natural = np.empty((len(gammas), count))
+    shapes = np.empty((len(gammas), at_dofs.shape[0], count))
+    for start in range(0, len(gammas), BATCH):
+        g = gammas[start:start + BATCH]
+        stiffness = reduced.rest[None] + np.einsum("sj,jab->sab", g, reduced.joints)
+        with threadpool_limits(1):  # thousands of tiny eigenproblems: a threaded LAPACK only thrashes
+            values, vectors = np.linalg.eigh(stiffness)
+        values, vectors = values[:, :candidates], vectors[:, :, :candidates]
+        cross = np.einsum("ak,sac->skc", reduced.nominal, vectors) ** 2
+        for s in range(len(g)):
+            rows, cols = linear_sum_assignment(-cross[s])
+            index = cols[np.argsort(rows)]
+            natural[start + s] = np.sqrt(np.clip(values[s, index], 0.0, None)) / (2.0 * np.pi)
+            shapes[start + s] = at_dofs @ vectors[s][:, index]
+    return natural, shapes
