@@ -19,6 +19,7 @@ from workbench.cli import main
 from workbench.io.campaign import Factor
 from workbench.model.frame_file import read_frame
 from workbench.report.page import SECTION_TITLES, render_report
+from workbench.report.tables import csv_name, declared_files
 from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 from workbench.workflow.measured import load_and_extract
 from workbench.workflow.study import JointSource, Run, predict_campaign
@@ -110,7 +111,9 @@ def report(one_bolt, tmp_path_factory):
 def test_report_is_one_self_contained_page(report):
     status, out = report
     assert status == 0
-    assert [p.name for p in out.iterdir()] == ["index.html"]
+    written = sorted(p.name for p in out.iterdir())
+    assert "index.html" in written and all(p.is_file() for p in out.iterdir())
+    assert set(written) <= {"index.html", *declared_files("report")}  # the output set declared them all
     text = (out / "index.html").read_text(encoding="utf-8")
     page = parse(text)
     images = [attrs for tag, attrs in page.tags if tag == "img"]
@@ -125,7 +128,8 @@ def test_report_is_one_self_contained_page(report):
 def test_report_has_every_section_and_the_synthetic_banner(report):
     _, out = report
     page = parse((out / "index.html").read_text(encoding="utf-8"))
-    for key in ("design", "frf", "modes", "nominal", "joints", "posterior", "accuracy", "band", "done", "limits"):
+    for key in ("design", "frf", "modes", "shapes", "nominal", "joints", "posterior", "accuracy", "band", "done",
+                "limits"):
         assert any(SECTION_TITLES[key] in h for h in page.headings), key
     assert "section 5" not in " ".join(page.headings).lower()  # no --joints-from, no prediction
     assert page.banners and page.banners[0].startswith("SYNTHETIC - virtual test rig")
@@ -218,3 +222,178 @@ def test_report_numbers_do_not_import_matplotlib(module):
             "if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == ""
+
+
+# ------------------------------------------------------------------ summary, units, CSV, shapes, inputs
+
+IDENTIFIERS = {"mode", "model mode", "measured mode", "test", "tests used", "tests flagged", "tests averaged",
+               "campaign", "joint group", "joints", "estimator", "group / estimator", "factor", "kind", "joint",
+               "levels", "parameter (unit)", "sensor", "step", "detail", "seed", "identified on", "region",
+               "mechanism", "rank", "effect", "where", "item", "finding"}
+
+
+def named_tables(page: Page) -> dict[str, list[list[str]]]:
+    """The page's tables by their ``data-table`` name."""
+    names = [attrs.get("data-table") for tag, attrs in page.tags if tag == "table"]
+    return dict(zip(names, page.tables))
+
+
+def visible_text(text: str) -> str:
+    """The page's text as a reader sees it: no tags, no embedded images."""
+    parser = HTMLParser()
+    chunks: list[str] = []
+    parser.handle_data = chunks.append  # type: ignore[method-assign]
+    parser.feed(text)
+    return " ".join(chunks)
+
+
+def read_csv(path) -> tuple[list[str], list[list[str]]]:
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as handle:
+        rows = list(csv.reader(handle))
+    return rows[0], rows[1:]
+
+
+def check_units(text: str) -> None:
+    """No modulus in Pa, kPa or MPa anywhere a reader looks, and a unit on every numeric column."""
+    import re
+
+    seen = visible_text(text)
+    assert re.findall(r"\w*(?<!G)Pa\b", seen) == [], "a modulus outside GPa"
+    for name, table in named_tables(parse(text)).items():
+        if name.endswith("design"):  # its columns are the tests' ids
+            continue
+        for header in table[0]:
+            assert header in IDENTIFIERS or re.search(r"\([^)]+\)$", header), (name, header)
+
+
+def test_every_table_is_a_linked_csv_beside_the_page(report):
+    _, out = report
+    text = (out / "index.html").read_text(encoding="utf-8")
+    page = parse(text)
+    tables = named_tables(page)
+    links = {attrs.get("href") for tag, attrs in page.tags if tag == "a"}
+    assert len(tables) >= 10 and None not in tables
+    for name, table in tables.items():
+        path = out / csv_name(name)
+        assert path.is_file() and csv_name(name) in links, name
+        header, rows = read_csv(path)
+        assert len(rows) == len(table) - 1, name
+        # an interval column of the page is two columns of the CSV, "low" and "high"
+        assert len(header) == len(table[0]) + sum(" low" in h for h in header), name
+    assert {p.name for p in out.iterdir()} == {"index.html", *(csv_name(n) for n in tables)}
+
+
+def test_summary_box_gives_each_estimator_in_gpa_and_percent(report, one_bolt, tmp_path):
+    """The summary's moment-matching row against `workbench identify` on the same data (another command)."""
+    _, out = report
+    text = (out / "index.html").read_text(encoding="utf-8")
+    assert text.index('id="summary"') < text.index("<nav>")  # at the top, before the contents
+    header, rows = read_csv(out / csv_name("summary"))
+    assert header[3:] == ["E (GPa)", "E 95 % interval low (GPa)", "E 95 % interval high (GPa)", "CoV (%)",
+                          "CoV 95 % interval low (%)", "CoV 95 % interval high (%)"]
+    assert [r[2] for r in rows] == ["moment matching", "Bayesian (emcee)"]  # one row per estimator
+    assert main(["identify", str(one_bolt), "--method", "moments", "--seed", "3", "--out", str(tmp_path / "i")]) == 0
+    import json
+
+    (joint,) = json.loads((tmp_path / "i" / "identification.json").read_text())["joints"].values()  # A, vertical
+    moments = dict(zip(header, rows[0]))
+    np.testing.assert_allclose(float(moments["E (GPa)"]), joint["youngs_modulus"] / 1e9, rtol=1e-9)
+    np.testing.assert_allclose(float(moments["CoV (%)"]), 100 * joint["cov"], rtol=1e-9)
+    np.testing.assert_allclose([float(moments["E 95 % interval low (GPa)"]),
+                                float(moments["E 95 % interval high (GPa)"])],
+                               np.array(joint["youngs_modulus_ci95"]) / 1e9, rtol=1e-9)
+    summary = visible_text(text[text.index('id="summary"'):text.index("<nav>")])
+    assert "5 measured modes" in summary and "4 tests" in summary and "flagged" in summary
+
+
+def test_units_are_gpa_hz_and_percent_with_every_column_headed_by_its_unit(report):
+    _, out = report
+    text = (out / "index.html").read_text(encoding="utf-8")
+    check_units(text)
+    seen = visible_text(text)
+    for unit in ("(GPa)", "(Hz)", "(%)"):
+        assert unit in seen
+    posterior = named_tables(parse(text))["1_posterior"]
+    assert [r[0] for r in posterior[1:3]] == ["E vertical (GPa)", "CoV vertical (%)"]
+
+
+def test_mac_and_shapes_are_shown_and_the_paired_modes_agree(report):
+    """On rig data made from the frame file's own modes, each measured shape matches its model mode."""
+    _, out = report
+    page = parse((out / "index.html").read_text(encoding="utf-8"))
+    assert any(a.get("alt") == "MAC matrix test against model" for t, a in page.tags if t == "img")
+    header, rows = read_csv(out / csv_name("1_mac"))
+    mac = np.array([[float(v) if v else np.nan for v in r[1:]] for r in rows])
+    assert mac.shape[0] == 5 and np.all((mac >= 0) & (mac <= 1 + 1e-12))
+    assert np.all(np.diag(mac) > 0.9)  # measured mode k against model mode k (paired by order)
+
+
+def test_shape_comparison_of_the_model_with_itself_is_exact():
+    """Model constants turned by arbitrary phases are recovered exactly; their MAC diagonal is 1."""
+    from workbench.extraction.records import MeasuredModes
+    from workbench.io.campaign import Campaign
+    from workbench.model.assembly import assemble
+    from workbench.model.modal import mac, model_modes
+    from workbench.workflow.report_inputs import dominant_real, shape_comparison
+
+    frame = read_frame(REPO / "frames" / "one_bolt_vertical.toml")
+    model = assemble(frame)
+    modes = model_modes(model, 6)
+    rows = [model.dof(s.point, s.dof) for s in frame.sensors]
+    exc = model.dof(frame.excitation.point, frame.excitation.dof)
+    exact = (modes.shapes[rows][:, :5] * modes.shapes[exc, :5]).T  # (5 modes, n_sensors)
+    rng = np.random.default_rng(4)
+    phases = np.exp(1j * rng.uniform(-np.pi, np.pi, (3, 5, 1)))
+    data = MeasuredModes(np.tile(modes.frequency_hz[:5], (3, 1)), modal_constants=exact[None] * phases)
+    campaign = Campaign("self", frame, synthetic=True)
+    shapes = shape_comparison(campaign, data, [s.name for s in frame.sensors])
+    assert shapes is not None
+    np.testing.assert_allclose(np.abs(shapes.measured), np.abs(exact), rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(np.diag(shapes.mac[:, :5]), 1.0, rtol=1e-10)
+    np.testing.assert_allclose(shapes.mac[:, :5], mac(exact.T, exact.T), atol=1e-10)
+    np.testing.assert_allclose(np.abs(dominant_real(exact[0] * 1j)), np.abs(exact[0]))
+
+
+@pytest.fixture(scope="module")
+def with_modes_csv(one_bolt, tmp_path_factory):
+    """The one-bolt campaign with a modes.csv beside its FRFs, shifted 1 % so that its use shows."""
+    import pandas as pd
+
+    from workbench.io.campaign import load_campaign, write_campaign
+
+    campaign, extraction = load_and_extract(one_bolt)
+    f = extraction.frequency_hz() * 1.01
+    z = extraction.damping_ratio()
+    table = pd.DataFrame([(t, k + 1, f[i, k], z[i, k]) for i, t in enumerate(extraction.tests)
+                          for k in range(f.shape[1]) if np.isfinite(f[i, k])],
+                         columns=["test_id", "mode", "frequency_hz", "damping_ratio"])
+    directory = tmp_path_factory.mktemp("m") / "with_modes"
+    write_campaign(dataclasses.replace(load_campaign(one_bolt), modes=table), directory)
+    return directory, f
+
+
+def test_report_reads_modes_csv_instead_of_a_circle_fit(with_modes_csv, tmp_path):
+    directory, f = with_modes_csv
+    out = tmp_path / "r"
+    assert main(["report", str(directory), "--out", str(out), "--no-bayes", "--samples", "20"]) == 0
+    text = (out / "index.html").read_text(encoding="utf-8")
+    page = parse(text)
+    assert any("modes.csv" in a and "not redone" in a for a in page.absent)
+    header, rows = read_csv(out / csv_name("1_nominal"))
+    measured = [float(r[header.index("measured mean (Hz)")]) for r in rows]
+    np.testing.assert_allclose(measured, np.nanmean(f, axis=0), rtol=1e-12)
+    check_units(text)
+
+
+def test_report_bands_set_the_circle_fit(with_modes_csv, tmp_path, capsys):
+    directory, _ = with_modes_csv
+    out = tmp_path / "r"
+    assert main(["report", str(directory), "--out", str(out), "--no-bayes", "--samples", "20",
+                 "--bands", "20:35,115:145"]) == 0
+    header, rows = read_csv(out / csv_name("1_modes"))
+    bands = [(float(r[header.index("band low (Hz)")]), float(r[header.index("band high (Hz)")])) for r in rows]
+    assert bands == [(20.0, 35.0), (115.0, 145.0)]
+    assert main(["report", str(directory), "--out", str(tmp_path / "bad"), "--bands", "35:20"]) == 2
+    assert "--bands" in capsys.readouterr().err

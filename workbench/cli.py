@@ -28,6 +28,7 @@ from workbench.model.matrix_file import is_matrix_model, read_matrix_model
 from workbench.model.matrix_model import matrix_model_modes
 from workbench.model.modal import model_modes
 from workbench.progress import Progress
+from workbench.report.tables import declared_files
 from workbench.uq.limits import smr1_cov_warning
 from workbench.uq.smr import propagate
 from workbench.uq.stochastic import joint_model
@@ -200,19 +201,21 @@ def _notify(line: str) -> None:
 
 
 def _write_report(run, out: OutputSet, start: float) -> str:
-    from workbench.report.page import render_report
+    from workbench.report.page import report_files
 
-    out.commit({"index.html": render_report(run, time.perf_counter() - start)})
-    return f"{out.out}/index.html"
+    files = report_files(run, time.perf_counter() - start)
+    out.commit(dict(files))  # the page and its tables as CSV: one output set, all or nothing
+    return f"{out.out}/index.html (and {len(files) - 1} table(s) as CSV beside it)"
 
 
 def _report(args: argparse.Namespace, out: OutputSet) -> str:
+    from workbench.workflow.report_inputs import parse_bands
     from workbench.workflow.study import report_run
 
     start = time.perf_counter()
     run = report_run(args.campaign, joints_from=args.joints_from or (), seed=args.seed, samples=args.samples,
                      bayes=not args.no_bayes, bayes_steps=args.steps, workers=args.workers,
-                     progress=_progress(), notify=_notify)
+                     bands=parse_bands(args.bands), progress=_progress(), notify=_notify)
     return f"report of {run.studies[0].name!r} written to {_write_report(run, out, start)}"
 
 
@@ -229,7 +232,7 @@ def _demo(args: argparse.Namespace, out: OutputSet) -> str:
 
 
 def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
-    from workbench.report.diagnosis_page import diagnosis_html
+    from workbench.report.diagnosis_page import diagnosis_files
     from workbench.workflow.diagnosis import diagnose_campaign
 
     def say(message: str) -> None:
@@ -238,8 +241,8 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
     # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
     done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None)
     record, campaign = done.record, done.campaign
-    page = diagnosis_html(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
-    out.commit({"diagnosis.json": json_text(record), "index.html": page})
+    pages = diagnosis_files(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
+    out.commit({"diagnosis.json": json_text(record), **pages})  # the page and its tables as CSV, all or nothing
     v = record["verdict"]
     where = f" at {v['where']}" if v["where"] else ""
     return (f"{record['campaign']!r}: {v['effect']}{where}, shrinkage {100 * v['shrinkage']:.0f} % (baseline RMS "
@@ -314,8 +317,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
     _work_options(p)
 
-    p = command("report", "a self-contained HTML identification report of a campaign (index.html)", _report,
-                ("index.html",))
+    p = command("report", "a self-contained HTML identification report of a campaign (index.html, tables as CSV)",
+                _report, ("index.html", *declared_files("report")))
     p.add_argument("campaign", help="campaign directory (FRFs, modes.csv or moments.csv)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
     p.add_argument("--samples", type=_positive_int, default=1000,
@@ -327,6 +330,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="section 5: identify joint groups on this (one-bolt) campaign and predict CAMPAIGN with "
                         "them; repeat for each group")
     p.add_argument("--workers", type=_positive_int, default=1, help="processes for circle fits and Monte Carlo")
+    p.add_argument("--bands", help="circle-fit the campaign's FRFs with these mode bands, 'lo:hi,lo:hi,...' in Hz "
+                                   "(also when it has a modes.csv, which is used as it is otherwise)")
 
     p = sub.add_parser("demo", help="the main job on the bundled campaigns: identify, propagate, predict, report")
     p.add_argument("--out", default=DEMO_OUT,
@@ -338,10 +343,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="Monte Carlo samples of the Figure 11 references and the FRF bands (default 500)")
     p.add_argument("--steps", type=_positive_int, default=2000, help="emcee steps kept per walker (default 2000)")
     p.add_argument("--workers", type=_positive_int, default=2, help="processes for circle fits and Monte Carlo")
-    p.set_defaults(run=_demo, writes=("index.html",))
+    p.set_defaults(run=_demo, writes=("index.html", *declared_files("report")))
 
     p = command("diagnose", "sim-to-real gap: where the model misses, which effect, how far it shrinks", _diagnose,
-                ("diagnosis.json", "index.html"))
+                ("diagnosis.json", "index.html", *declared_files("diagnosis")))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
 

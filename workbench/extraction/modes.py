@@ -12,7 +12,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.signal import find_peaks
-from scipy.stats import t as t_dist
 
 from workbench.extraction.circlefit import (
     CLOSE_BANDWIDTHS,
@@ -272,7 +271,7 @@ def _multimode_rows(f: np.ndarray, h: np.ndarray, band: tuple[float, float], qua
     inside = (f >= band[0]) & (f <= band[1])
     start = _peak_start(f[inside], h[:, inside])
     if m == 2:
-        fit = second_mode(f, h, band, quantity, noise, start)[1]
+        fit = second_mode(f, h, band, quantity, noise, start, screen=False)[1]
     else:  # spread the starts over the middle half of the band
         lo, hi = 0.75 * band[0] + 0.25 * band[1], 0.25 * band[0] + 0.75 * band[1]
         fit = pole_fit(f, h, band, quantity, noise, [[(x, start[1] / m) for x in np.linspace(lo, hi, m)]])
@@ -320,11 +319,11 @@ def combine(fits) -> ModeEstimate:
     (two close modes are a property of the structure, not of a sensor; a fit that failed for
     other reasons as well is no evidence of them).
 
-    95 % intervals (`_combined_interval`): the larger of the per-curve intervals combined as
-    independent (``sqrt(sum w^2 h^2)``, ``h`` each side's half-width; damping in log) and the
-    standard error of the weighted mean from the scatter between curves (Student-t on the
-    effective number of curves minus one); fits that share one estimate (a multi-mode fit's common
-    pole) count once.
+    95 % intervals (`_combined_interval`): the per-curve intervals combined as independent
+    (``sqrt(sum w^2 h^2)``, ``h`` each side's half-width; damping in log), times the Birge ratio
+    ``sqrt(chi^2 / (n - 1))`` when above 1 (``chi^2`` of the curves' estimates about the mean, in
+    their own standard deviations ``h / 1.96``): curves that scatter more than their intervals say
+    widen the interval. Fits that share one estimate (a multi-mode fit's common pole) count once.
     """
     fits = tuple(fits)
     if not fits:
@@ -361,18 +360,19 @@ def _combined_interval(w: np.ndarray, x: np.ndarray, ci: np.ndarray) -> tuple[fl
     """Half-widths (below, above) of the weighted mean ``w @ x`` (`combine`); ``ci`` (n, 2)."""
     keep = w > 0
     w, x, ci = w[keep], x[keep], ci[keep]
-    _, first = np.unique(np.column_stack([x, ci]), axis=0, return_index=True)
-    if first.size < x.size:  # fits sharing one estimate: one estimate, its weight summed
-        groups = np.unique(np.column_stack([x, ci]), axis=0, return_inverse=True)[1].ravel()
-        w = np.bincount(groups, weights=w)
+    _, first, groups = np.unique(np.column_stack([x, ci]), axis=0, return_index=True, return_inverse=True)
+    if first.size < x.size:  # fits sharing one estimate (a multi-mode fit's pole): counted once
+        w = np.bincount(groups.ravel(), weights=w)
         x, ci = x[first], ci[first]
     below, above = x - ci[:, 0], ci[:, 1] - x
+    if not (np.all(np.isfinite(below)) and np.all(np.isfinite(above))):
+        return np.inf, np.inf
     half = np.array([np.sqrt(w**2 @ below**2), np.sqrt(w**2 @ above**2)])
-    n_eff = 1.0 / float(w @ w)
-    if x.size > 1 and n_eff >= 2.0:  # below two curves' worth, the scatter says nothing
+    if x.size > 1:
+        # Birge ratio: curves that disagree beyond their own intervals widen the combined one
+        sd = np.maximum(0.5 * (below + above), 1e-12 * np.abs(x).max() + 1e-300) / 1.96
         mean = float(w @ x)
-        sd = np.sqrt(float(w @ (x - mean) ** 2) * n_eff / (n_eff - 1.0))
-        half = np.maximum(half, float(t_dist.ppf(0.975, n_eff - 1.0)) * sd / np.sqrt(n_eff))
+        half = half * max(1.0, float(np.sqrt(np.sum(((x - mean) / sd) ** 2) / (x.size - 1))))
     return float(half[0]), float(half[1])
 
 

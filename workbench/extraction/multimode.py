@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import chi2
 from scipy.stats import f as f_dist
 from scipy.stats import t as t_dist
 
@@ -176,30 +177,31 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
     data = (np.atleast_2d(frfs)[:, inside] / np.asarray(noise, float)[:, None]).T  # (n, n_curves)
     power = _POWER[quantity]
 
+    # poles kept within the band widened by its width, damping within (1e-6, 0.5) (clipped in the
+    # model: a wandering pole is a failed start, not an answer)
+    width = band[1] - band[0]
+    w_lo, w_hi = np.log(2.0 * np.pi * max(band[0] - width, 0.5 * band[0])), np.log(2.0 * np.pi * (band[1] + width))
+
+    def bounded(x):
+        n = x.size // 2
+        return np.concatenate([np.clip(x[:n], w_lo, w_hi), np.clip(x[n:], np.log(1e-6), np.log(0.5))])
+
     def residual(x):
-        r = _solve(omega, data, x, power)[1].ravel()
+        r = _solve(omega, data, bounded(x), power)[1].ravel()
         return np.concatenate([r.real, r.imag])
 
     best = None
-    # poles kept within the band widened by its width, damping within (1e-6, 0.5): a wandering
-    # pole is a failed start, not an answer
-    width = band[1] - band[0]
-    w_lo, w_hi = np.log(2.0 * np.pi * max(band[0] - width, 0.5 * band[0])), np.log(2.0 * np.pi * (band[1] + width))
     for start in starts:
         s = np.asarray(start, float)
-        n_poles = s.shape[0]
-        lower = np.concatenate([np.full(n_poles, w_lo), np.full(n_poles, np.log(1e-6))])
-        upper = np.concatenate([np.full(n_poles, w_hi), np.full(n_poles, np.log(0.5))])
-        x0 = np.concatenate([np.log(2.0 * np.pi * s[:, 0]), np.log(np.clip(s[:, 1], 1e-6, 0.5))])
-        x0 = np.clip(x0, lower + 1e-9, upper - 1e-9)
-        sol = least_squares(residual, x0, bounds=(lower, upper), method="trf", x_scale="jac",
-                            xtol=1e-12, ftol=1e-12)
+        x0 = bounded(np.concatenate([np.log(2.0 * np.pi * s[:, 0]), np.log(np.clip(s[:, 1], 1e-6, 0.5))]))
+        sol = least_squares(residual, x0, method="lm", xtol=1e-10, ftol=1e-10)
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None, "pole_fit: no start given"
     n_poles = best.x.size // 2
-    order = np.argsort(best.x[:n_poles])
-    x = np.concatenate([best.x[:n_poles][order], best.x[n_poles:][order]])
+    solution = bounded(best.x)
+    order = np.argsort(solution[:n_poles])
+    x = np.concatenate([solution[:n_poles][order], solution[n_poles:][order]])
     jac = best.jac[:, np.concatenate([order, order + n_poles])]
     coefficients, r = _solve(omega, data, x, power)
     n_obs = 2 * data.size
@@ -244,19 +246,23 @@ def _second_starts(frequency_hz, one: PoleFit, frfs, quantity, noise) -> list:
 
 
 def second_mode(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise,
-                start: tuple[float, float]) -> tuple[PoleFit, PoleFit, bool]:
+                start: tuple[float, float], screen: bool = True) -> tuple[PoleFit, PoleFit, bool]:
     """One pole or two over ``band`` (module docstring: the tests for a second pole).
 
     Parameters
     ----------
     frequency_hz, frfs, band, quantity, noise : as `pole_fit`.
     start : (frequency Hz, damping ratio) of the mode seen, e.g. the circle fit's.
+    screen : skip the two-pole fit (and return the one-pole fit twice) when the one-pole residual
+        is noise, below the ``1 - SPLIT_ALPHA`` quantile of ``chi^2(dof) / 2``.
 
     Returns
     -------
     (one-pole fit, two-pole fit, True when the second pole is accepted).
     """
     one = pole_fit(frequency_hz, frfs, band, quantity, noise, [[start]])
+    if screen and one.rss <= 0.5 * chi2.ppf(1.0 - SPLIT_ALPHA, one.dof):
+        return one, one, False  # the one-pole fit leaves noise only: nothing for a second pole
     two = pole_fit(frequency_hz, frfs, band, quantity, noise,
                    _second_starts(frequency_hz, one, frfs, quantity, noise))
     return one, two, accept_second(one, two)

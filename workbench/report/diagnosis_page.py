@@ -1,8 +1,9 @@
-"""The gap diagnosis's page and text: the readable ``index.html`` beside ``diagnosis.json``, and the
-blind validation's printed summary.
+"""The gap diagnosis's page and text: the readable ``index.html`` beside ``diagnosis.json`` (with each
+of its tables as CSV), and the blind validation's printed summary.
 
 The numbers come from `workbench.workflow.diagnosis` (`workbench.diagnose`, `workbench.workflow.rig_cases`);
-this module only draws figures and writes HTML and text.
+this module only draws figures and writes HTML and text. Frequencies in Hz, relative errors,
+shrinkage and confidence in %, each fitted parameter in its registry unit (`workbench.rig.effects`).
 """
 
 from __future__ import annotations
@@ -13,16 +14,29 @@ from typing import Any
 import numpy as np
 
 from workbench.diagnose.verdict import Diagnosis
-from workbench.report.page import CSS, html_figure, html_table
+from workbench.report.page import CSS
+from workbench.report.pieces import html_figure
 from workbench.report.plots import plt
-from workbench.rig.effects import JOINT_DAMPING, NONE, UNEXPLAINED
+from workbench.report.summary import SUMMARY_CSS
+from workbench.report.tables import Tables
+from workbench.rig.effects import EFFECTS, JOINT_DAMPING, NONE, UNEXPLAINED
 
-__all__ = ["diagnosis_html", "validation_text"]
+__all__ = ["diagnosis_html", "diagnosis_files", "verdict_summary", "validation_text"]
+
+
+def _verdict_fitted(d: Diagnosis) -> bool:
+    """True when ``d.best_hz`` is the verdict's own candidate: the verdict names an effect (not
+    ``none`` nor ``unexplained``) and that effect at that place is a ranked candidate.
+    """
+    return (d.best_hz is not None and d.verdict not in (NONE.name, UNEXPLAINED)
+            and any(c.effect == d.verdict and c.where == d.where for c in d.ranking))
 
 
 def _figures(d: Diagnosis) -> list[str]:
     """The page's figures as embedded HTML: residuals, localisation, ranking."""
     out = []
+    fitted = _verdict_fitted(d)
+    name = f"{d.verdict} @ {d.where}" if d.where else d.verdict
     modes = np.asarray(d.modes)
     fig, ax = plt.subplots(figsize=(9, 3.6))
     width = 0.8 / max(len(d.amplitude), 1)
@@ -35,18 +49,19 @@ def _figures(d: Diagnosis) -> list[str]:
                label=f"nominal model{label}")
         ax.errorbar(x, np.zeros_like(x), yerr=err, fmt="none", ecolor="k", capsize=2,
                     label="2 standard errors of the measured mean" if c == 0 else None)
-        if d.best_hz is not None:
+        if fitted and d.best_hz is not None:
             ax.plot(x, 100 * (d.best_hz[c] / d.measured_hz[c] - 1), "o", color="tab:blue",
-                    label=f"with {d.verdict}" if c == 0 else None)
+                    label=f"with the verdict's {name}" if c == 0 else None)
     ax.axhline(0, color="k", lw=0.8)
     ax.set_xlabel("mode")
     ax.set_ylabel("model / measured - 1 (%)")
     ax.set_xticks(modes)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    out.append(html_figure(fig, "Per-mode frequency residual of the nominal model (bars) and of the model with the "
-                           "verdict's effect fitted (dots), against twice the standard error of each measured mean.",
-                           "frequency residual per mode"))
+    dots = (f"and of the model with the verdict's own effect, {name}, fitted (dots)" if fitted else
+            f"(no dots: the verdict is {d.verdict}, no candidate effect was accepted)")
+    out.append(html_figure(fig, f"Per-mode frequency residual (%) of the nominal model (bars) {dots}, against twice "
+                           "the standard error of each measured mean.", "frequency residual per mode"))
 
     top = d.localisation[:12][::-1]
     if top:
@@ -76,50 +91,127 @@ def _figures(d: Diagnosis) -> list[str]:
     return out
 
 
-def _fmt(value: Any, spec: str = ".3g") -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        return format(value, spec)
-    return str(value)
+def _unit(effect: str, key: str) -> str:
+    """The unit of a fitted parameter of ``effect`` (the registry's), or "" for a label."""
+    kind = EFFECTS.get(effect)
+    if kind is None:
+        return ""
+    if key in (kind.parameter, kind.fitted_parameter):
+        return kind.unit
+    return {"position": "fraction of the member's length", "rotary_inertia": "kg.m2", "ux": "N/m", "uy": "N/m",
+            "rz": "N.m/rad", "poisson_ratio": "1", "ps_n": "N"}.get(key, "")
 
 
-def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> str:
-    """A self-contained page: verdict, residuals, localisation, ranking, protocol."""
+def _parameters(effect: str, parameters: dict[str, Any]) -> str:
+    def one(key: str, value: Any) -> str:
+        unit = _unit(effect, key)
+        text = format(value, ".4g") if isinstance(value, float) else str(value)
+        return f"{key} = {text}" + (f" {unit}" if unit and unit != "1" else "")
+    return "; ".join(one(k, v) for k, v in parameters.items()) or "-"
+
+
+def _pct(value: float | None) -> float | None:
+    return None if value is None else 100 * float(value)
+
+
+def _share_text(after: float, before: float) -> str:
+    """The held-out error left as a share of the nominal model's, in words that never round an exact
+    candidate to "0 %" nor a real remainder to nothing.
+    """
+    if before <= 0:
+        return "the nominal model's held-out error is already 0"
+    share = after / before
+    if share == 0:
+        return "the candidate leaves no held-out error at all (an exact fit of the held-out modes)"
+    if share < 0.005:
+        return (f"the candidate leaves {100 * share:.2g} % of the nominal model's held-out error (held-out RMS "
+                f"{100 * after:.2g} % against {100 * before:.3g} %): below 0.5 %, an almost exact fit")
+    return (f"the candidate leaves {100 * share:.1f} % of the nominal model's held-out error (held-out RMS "
+            f"{100 * after:.3g} % against {100 * before:.3g} %)")
+
+
+def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]:
+    """The summary's lines, ``(label, text)``: verdict, where, confidence, shrinkage, what is left unexplained."""
     v = record["verdict"]
-    banner = ('<p class="banner synthetic">SYNTHETIC campaign (virtual test rig): not a measurement.</p>'
-              if synthetic else '<p class="banner real">Real measured data.</p>')
     meaning = {NONE.name: "the nominal model already fits within measurement scatter",
                UNEXPLAINED: "a real gap remains that no effect of the vocabulary brings down to the scatter"}
-    where = f" at <b>{html.escape(str(v['where']))}</b>" if v["where"] else ""
-    verdict = (f"<b>{html.escape(v['effect'])}</b>" + where
-               + f": held-out error shrinks by {100 * v['shrinkage']:.0f} %" if v["effect"] not in meaning
-               else f"<b>{v['effect']}</b>: {meaning[v['effect']]}")
+    effect = v["effect"]
+    kind = EFFECTS.get(effect)
+    lines = [("verdict", f"{effect}: {meaning.get(effect) or (kind.meaning if kind else '')}"),
+             ("where", str(v["where"]) if v.get("where") else "nowhere in particular (a global effect or none)")]
+    confidence = v.get("confidence")
+    lines.append(("confidence", f"{100 * confidence:.0f} %" if confidence is not None
+                  else "not given by this diagnosis (diagnosis.json carries no confidence)"))
+    base = diagnosis.baseline.heldout_freq_rms_rel_error
+    ranking = record["ranking"]
+    if effect not in meaning:
+        own = next((c for c in ranking if c["effect"] == effect and c["where"] == v.get("where")), None)
+        lines.append(("shrinkage", f"{100 * v['shrinkage']:.1f} % of the nominal model's held-out error removed"))
+        if own is not None and own["heldout_freq_rms_rel_error"] is not None and effect != JOINT_DAMPING.name:
+            lines.append(("unexplained", _share_text(own["heldout_freq_rms_rel_error"], base)))
+    elif effect == UNEXPLAINED:
+        lines.append(("shrinkage", "none accepted: no candidate met the verdict's rules, so the verdict claims no "
+                      "shrinkage (the record's 0)"))
+        top = ranking[0] if ranking else None
+        if top is not None and top["heldout_freq_rms_rel_error"] is not None:
+            at = f" @ {top['where']}" if top["where"] else ""
+            lines.append(("best candidate", f"{top['effect']}{at}, not accepted: "
+                          + _share_text(top["heldout_freq_rms_rel_error"], base)))
+        partial = v.get("partial")
+        if partial:
+            lines.append(("partial explanation", f"{partial['effect']} @ {partial.get('where')}, shrinkage "
+                          f"{100 * partial['shrinkage']:.1f} %"))
+    else:
+        lines.append(("shrinkage", "nothing to shrink: no gap beyond the scatter"))
+    for also in v.get("also") or ():
+        lines.append(("together with", f"{also['effect']} @ {also.get('where')}, shrinkage "
+                      f"{100 * also['shrinkage']:.1f} %"))
+    return lines
+
+
+def diagnosis_files(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> dict[str, str]:
+    """The page (``index.html``) and one CSV per table of it, file name -> text (`workbench.report.tables`).
+
+    Parameters
+    ----------
+    record : the ``diagnosis.json`` record (CONTRACTS.md section 3); diagnosis : the `Diagnosis` it
+        was made from (the arrays the figures draw); synthetic : the campaign is from the virtual rig;
+        source : where the data come from, as the campaign says.
+    """
+    tables = Tables()
+    banner = ('<p class="banner synthetic">SYNTHETIC campaign (virtual test rig): not a measurement.</p>'
+              if synthetic else '<p class="banner real">Real measured data.</p>')
+    lines = verdict_summary(record, diagnosis)
+    summary_table = tables.add("summary", ["item", "finding"], lines, left=2, wrap=True)
     figures = "".join(_figures(diagnosis))
     base = record["baseline"]
-    modes = html_table(["mode", "measured (Hz)", "model (Hz)", "model/measured - 1"],
-                   [[m["mode"], f"{m['measured_hz']:.2f}", f"{m['model_hz']:.2f}", f"{100 * m['rel_error']:+.3f} %"]
-                    for m in base["modes"]])
-    loc = html_table(["region", "kind", "mechanism", "score"],
-                 [[r["region"], r["kind"], r["mechanism"], f"{r['score']:.2f}"] for r in record["localization"][:12]],
-                 left=3)
-    rank = html_table(["effect", "where", "parameters", "RMS rel. error", "held-out", "held-out chi2", "BIC"],
-                  [[c["effect"], _fmt(c["where"]), ", ".join(f"{k}={_fmt(x)}" for k, x in c["parameters"].items()),
-                    _fmt(c["freq_rms_rel_error"]), _fmt(c["heldout_freq_rms_rel_error"]),
-                    _fmt(c["heldout_chi2"], ".4g"),
-                    _fmt(c["bic"], ".4g")] for c in record["ranking"][:15]], left=3)
+    modes = tables.add("baseline", ["mode", "measured (Hz)", "model (Hz)", "model/measured - 1 (%)"],
+                       [(m["mode"], m["measured_hz"], m["model_hz"], 100 * m["rel_error"]) for m in base["modes"]],
+                       ["", ".2f", ".2f", "+.3f"], left=0)
+    loc = tables.add("localisation", ["region", "kind", "mechanism", "score (-)"],
+                     [(r["region"], r["kind"], r["mechanism"], r["score"]) for r in record["localization"]],
+                     ["", "", "", ".2f"], left=3)
+    rank = tables.add("candidates", ["rank", "effect", "where", "fitted parameters (units)",
+                                     "RMS rel. frequency error (%)", "held-out RMS rel. frequency error (%)",
+                                     "held-out RMS damping error (%)", "held-out chi2 (-)", "BIC (-)"],
+                      [(i, c["effect"], c["where"] or "-", _parameters(c["effect"], c["parameters"]),
+                        _pct(c["freq_rms_rel_error"]), _pct(c["heldout_freq_rms_rel_error"]),
+                        _pct(c.get("heldout_damping_rms_error")), c["heldout_chi2"], c["bic"])
+                       for i, c in enumerate(record["ranking"], start=1)],
+                      ["", "", "", "", ".3g", ".3g", ".3g", ".4g", ".4g"], left=4)
     title = html.escape(record["campaign"])
-    return f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Diagnosis: {title}</title>
-<style>{CSS}</style></head><body><main>
-<h1>Sim-to-real gap diagnosis: {html.escape(record['campaign'])}</h1>{banner}
+    page = f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Diagnosis: {title}</title>
+<style>{CSS}{SUMMARY_CSS}</style></head><body><main>
+<h1>Sim-to-real gap diagnosis: {title}</h1>{banner}
+<section class="summary" id="summary"><h2>Summary</h2>{summary_table}</section>
 <p>Source: {html.escape(source)}. Observations: {base['observations']['frequency']} frequency and
-{base['observations']['damping']} damping means. Wall time {record['wall_time_s']:.1f} s.</p>
-<p class="note">Verdict: {verdict}</p>
+{base['observations']['damping']} damping means. Wall time {record['wall_time_s']:.1f} s. Frequencies in Hz, errors
+and shrinkage in %; every table is also a CSV file beside this page (linked below it).</p>
 <h2>Where the model misses</h2>{figures}
 <h2>Baseline: nominal model against the measured means</h2>
 <p>RMS relative frequency error {100 * base['freq_rms_rel_error']:.3f} %, chi-square {base['chi2']:.4g}.</p>{modes}
 <h2>Localisation</h2>{loc}
-<h2>Candidate effects, best first</h2>{rank}
+<h2>Candidate effects, all {len(record['ranking'])}, best first</h2>{rank}
 <h2>Protocol</h2><p>{html.escape(record['protocol'])}. Each candidate is the nominal frame changed by one effect
 of the vocabulary (CONTRACTS.md section 3) with one parameter (two for a mass on a member: its position),
 fitted on exact eigen-solutions. Verdict rules: <code>none</code> when the nominal model's chi-square per
@@ -128,6 +220,12 @@ within the scatter allowance and it shrinks the held-out error meaningfully; els
 See <code>workbench/diagnose/</code>.</p>
 </main></body></html>
 """
+    return {"index.html": page, **tables.files()}
+
+
+def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> str:
+    """The self-contained page alone (`diagnosis_files`'s ``index.html``)."""
+    return diagnosis_files(record, diagnosis, synthetic, source)["index.html"]
 
 
 def validation_text(summary: dict) -> str:

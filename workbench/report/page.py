@@ -12,8 +12,6 @@ imported them from this module before the split.
 
 from __future__ import annotations
 
-import base64
-import html
 import platform
 from collections.abc import Iterable, Sequence
 
@@ -21,10 +19,12 @@ import numpy as np
 
 from workbench import __version__
 from workbench.identify.bayes import load_arviz
+from workbench.report.pieces import absent as _absent
+from workbench.report.pieces import escape as _e
+from workbench.report.pieces import html_figure
 from workbench.report.plots import (
     band_figure,
     band_zoom_figure,
-    figure_png,
     forest_figure,
     frf_overlay_figure,
     moment_error_figure,
@@ -35,16 +35,20 @@ from workbench.report.plots import (
     prediction_figure,
     save_figure,
 )
+from workbench.report.shapes import shapes_section
+from workbench.report.summary import SUMMARY_CSS, summary_box
+from workbench.report.tables import Tables
 from workbench.workflow.measured import campaign_label, mode_windows, nyquist_data
 from workbench.workflow.study import Prediction, Run, Study
 
-__all__ = ["render_report", "SECTION_TITLES", "CSS", "html_table", "html_figure", "plt", "save_figure",
+__all__ = ["render_report", "report_files", "SECTION_TITLES", "CSS", "html_table", "html_figure", "plt", "save_figure",
            "moment_error_figure", "plot_moment_errors"]
 
 SECTION_TITLES = {
     "design": "Campaign and design",
     "frf": "Measured FRFs",
     "modes": "Extracted modes (circle fit)",
+    "shapes": "Mode shapes and MAC: test against model",
     "nominal": "Nominal fit (Table 2 style)",
     "joints": "Joint models: moment matching and Bayesian",
     "posterior": "Posterior (emcee, arviz)",
@@ -81,20 +85,6 @@ dl{display:grid;grid-template-columns:max-content auto;gap:2px 14px;font-size:.9
 
 # ----------------------------------------------------------------------------------- HTML pieces
 
-def _e(value: object) -> str:
-    return html.escape(str(value), quote=True)
-
-
-def _num(value: float | None, fmt: str = ".4g") -> str:
-    if value is None or not np.isfinite(value):
-        return "-"
-    return format(float(value), fmt)
-
-
-def _ci(ci, scale: float = 1.0, fmt: str = ".3g") -> str:
-    return "-" if ci is None else f"[{ci[0] / scale:{fmt}}, {ci[1] / scale:{fmt}}]"
-
-
 def html_table(header: Sequence[str], rows: Iterable[Sequence[object]], left: int = 1, wrap: bool = False) -> str:
     """An HTML table; the first ``left`` columns are text (left-aligned), cells escaped; ``wrap``
     lets the last column's text wrap (long level descriptions) instead of scrolling.
@@ -106,17 +96,6 @@ def html_table(header: Sequence[str], rows: Iterable[Sequence[object]], left: in
     head = "".join(cell("th", i, len(header), h) for i, h in enumerate(header))
     body = "".join("<tr>" + "".join(cell("td", i, len(row), c) for i, c in enumerate(row)) + "</tr>" for row in rows)
     return f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
-
-
-def html_figure(fig, caption: str, alt: str) -> str:
-    """A matplotlib figure as an embedded PNG with its caption (the figure is closed)."""
-    data = base64.b64encode(figure_png(fig)).decode("ascii")
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{_e(alt)}">'
-            f"<figcaption>{_e(caption)}</figcaption></figure>")
-
-
-def _absent(reason: str) -> str:
-    return f'<p class="absent">Not shown: {_e(reason)}</p>'
 
 
 def _badge(campaign) -> str:
@@ -131,7 +110,7 @@ def _anchor(*parts: str) -> str:
 
 # -------------------------------------------------------------------------------- one campaign
 
-def _design(study: Study) -> str:
+def _design(study: Study, tables: Tables, prefix: str) -> str:
     c = study.campaign
     out = [f"<dl><dt>campaign</dt><dd>{_e(c.name)}</dd><dt>data</dt><dd>{_badge(c)}</dd>"
            f"<dt>source</dt><dd>{_e(c.source or '-')}</dd><dt>description</dt><dd>{_e(c.description or '-')}</dd>"
@@ -139,19 +118,20 @@ def _design(study: Study) -> str:
            f"{_e(', '.join(f'{j.name} [{j.group}]' for j in c.frame.joints))})</dd>"
            f"<dt>FRF quantity</dt><dd>{_e(c.quantity)} (reference: {_e(c.reference)})</dd></dl>"]
     if c.factors:
-        out.append(html_table(["factor", "kind", "joint", "levels"],
-                          [(f.name, f.kind, f.joint or "-", "; ".join(f"{k} = {v}" for k, v in f.levels.items()))
-                           for f in c.factors], left=4, wrap=True))
+        out.append(tables.add(f"{prefix}factors", ["factor", "kind", "joint", "levels"],
+                              [(f.name, f.kind, f.joint or "-", "; ".join(f"{k} = {v}" for k, v in f.levels.items()))
+                               for f in c.factors], left=4, wrap=True))
     if c.design is not None:  # as the paper's Tables 5-7: one column per test
         design = c.design.astype(str)
-        out.append(html_table(["test", *design["test_id"]],
-                          [(column, *design[column]) for column in design.columns if column != "test_id"], left=1))
+        out.append(tables.add(f"{prefix}design", ["test", *design["test_id"]],
+                              [(column, *design[column]) for column in design.columns if column != "test_id"],
+                              left=len(design) + 1))
     else:
         out.append(_absent("no design table: the campaign publishes moments over tests that are not listed."))
     return "".join(out)
 
 
-def _modes_section(study: Study) -> str:
+def _modes_section(study: Study, tables: Tables, prefix: str) -> str:
     ex = study.extraction
     if ex is None:
         return _absent(study.extraction_note)
@@ -164,29 +144,30 @@ def _modes_section(study: Study) -> str:
         mean, std = np.nanmean(f, axis=0), np.nanstd(f, axis=0, ddof=1)
         zeta = np.nanmean(z, axis=0)
     for k, (lo, hi) in enumerate(ex.bands):
-        rows.append((k + 1, f"{lo:.1f}-{hi:.1f}", _num(mean[k], ".2f"), _num(std[k], ".3f"),
-                     _num(std[k] / mean[k], ".2e"), _num(100 * zeta[k], ".3f"), f"{used[k]}/{len(ex.tests)}",
-                     int(flagged[k])))
+        rows.append((k + 1, (float(lo), float(hi)), float(mean[k]), float(std[k]), float(100 * std[k] / mean[k]),
+                     float(100 * zeta[k]), f"{used[k]}/{len(ex.tests)}", int(flagged[k])))
     caption = (f"Circle fit of every mode on test {panels[0].test}, on the sensor with the largest combination "
                "weight: measured mobility (dots) and fitted modal circle with residual terms (line); red titles are "
                "flagged fits.")
     return (html_figure(nyquist_figure(panels), caption, "Nyquist plots of the circle fits") +
-            html_table(["mode", "band (Hz)", "mean f (Hz)", "std f (Hz)", "CoV f", "mean damping (%)", "tests used",
-                    "tests flagged"], rows, left=2) +
+            tables.add(f"{prefix}modes", ["mode", "band (Hz)", "mean f (Hz)", "std f (Hz)", "CoV f (%)",
+                                          "mean damping (%)", "tests used", "tests flagged"], rows,
+                       ["", ".1f", ".2f", ".3f", ".3f", ".3f", "", ""], left=0) +
             '<p class="note">Sensors are combined per mode by fit quality; a mode whose combined fit is flagged '
             "weak or poor_circle is left out of that test. Flagged tests (any flag, e.g. close_mode) are counted "
             "in the last column. Modes are paired with the model by order.</p>")
 
 
-def _nominal_section(study: Study) -> str:
+def _nominal_section(study: Study, tables: Tables, prefix: str) -> str:
     nom = study.moments.nominal
     moduli = ", ".join(f"{g}: E = {m / 1e9:.3g} GPa" for g, m in zip(nom.groups.groups, nom.moduli_pa))
-    rows = [(int(m), int(mm), f"{e:.2f}", f"{s:.2f}", f"{100 * r:+.2f}")
+    rows = [(int(m), int(mm), float(e), float(s), float(100 * r))
             for m, mm, e, s, r in zip(nom.modes, nom.model_modes, nom.measured_hz, nom.model_hz, nom.relative_error)]
     return (f'<p class="note">Eq. (1): joint moduli minimising the squared differences between the measured mean '
             f"frequencies and the nominal model's (joints at their mean, Nelder-Mead after a log scan): {_e(moduli)}; "
             f"RMS relative error {100 * nom.rms_relative_error:.2f} %.</p>" +
-            html_table(["mode", "model mode", "measured mean (Hz)", "model (Hz)", "error (%)"], rows, left=0))
+            tables.add(f"{prefix}nominal", ["mode", "model mode", "measured mean (Hz)", "model (Hz)", "error (%)"],
+                       rows, ["", "", ".2f", ".2f", "+.2f"], left=0))
 
 
 def _forest_rows(study: Study) -> list[dict]:
@@ -204,23 +185,30 @@ def _forest_rows(study: Study) -> list[dict]:
     return rows
 
 
-def _joints_section(study: Study) -> str:
+def _pair(ci, scale: float = 1.0) -> tuple[float, float] | None:
+    return None if ci is None else (float(ci[0]) * scale, float(ci[1]) * scale)
+
+
+def _joints_section(study: Study, tables: Tables, prefix: str) -> str:
     fit = study.moments
     rows = _forest_rows(study)
-    table = html_table(["group / estimator", "E (GPa)", "E 95 % interval", "CoV", "CoV 95 % interval"],
-                   [(r["label"], f"{r['modulus_gpa']:.4g}", _ci(r["modulus_ci"]), f"{r['cov']:.4g}", _ci(r["cov_ci"]))
-                    for r in rows])
+    table = tables.add(f"{prefix}joints", ["group / estimator", "E (GPa)", "E 95 % interval (GPa)", "CoV (%)",
+                                           "CoV 95 % interval (%)"],
+                       [(r["label"], float(r["modulus_gpa"]), _pair(r["modulus_ci"]), 100 * float(r["cov"]),
+                         _pair(r["cov_ci"], 100.0)) for r in rows], ["", ".4g", ".4g", ".3g", ".3g"])
     intervals = ("Moment-matching intervals: bootstrap of the tests carried through the linearised eq. (10)-(11) "
                  "(test-to-test sampling only, not model-form error)" if fit.mean_ci95 is not None else
                  "The moment matching gives no interval here (published moments only, or an estimate on a bound); "
                  "open markers")
     bayes = ("Bayesian: posterior median and equal-tailed 95 % interval (full likelihood of every test, emcee)."
              if study.posterior is not None else f"Bayesian estimator {study.bayes_note}.")
-    moments = html_table(["mode", "measured mean (Hz)", "model mean (Hz)", "measured CoV", "model CoV"],
-                     [(int(m), f"{a:.2f}", f"{b:.2f}", f"{c:.2e}", f"{d:.2e}")
-                      for m, a, b, c, d in zip(fit.modes, fit.measured_mean_hz, fit.mean_hz, fit.measured_delta,
-                                               fit.delta)], left=0)
-    return (html_figure(forest_figure(rows), "Mean joint modulus and CoV of each joint group, 95 % intervals.",
+    moments = tables.add(f"{prefix}moments", ["mode", "measured mean (Hz)", "model mean (Hz)", "measured CoV (%)",
+                                              "model CoV (%)"],
+                         [(int(m), float(a), float(b), 100 * float(c), 100 * float(d))
+                          for m, a, b, c, d in zip(fit.modes, fit.measured_mean_hz, fit.mean_hz, fit.measured_delta,
+                                                   fit.delta)], ["", ".2f", ".2f", ".3f", ".3f"], left=0)
+    return (html_figure(forest_figure(rows), "Mean joint modulus (GPa) and CoV (%) of each joint group, 95 % "
+                        "intervals.",
                     "forest plot of the joint models") + table +
             f'<p class="note">{_e(intervals)}. {_e(bayes)} Moment matching: {fit.method} SMR forward model, '
             f"{fit.sweeps} sweep(s), {'converged' if fit.converged else 'NOT converged'}, {fit.evaluations} SMR "
@@ -228,7 +216,16 @@ def _joints_section(study: Study) -> str:
             moments)
 
 
-def _posterior_section(study: Study) -> str:
+def _posterior_name(name: str) -> tuple[str, float]:
+    """A posterior parameter's label with its unit, and the factor from its natural unit (Pa, fraction)."""
+    for prefix, label, unit, scale in (("youngs_modulus_", "E", "GPa", 1e-9), ("cov_", "CoV", "%", 100.0),
+                                       ("sigma_", "sigma", "%", 100.0)):
+        if name.startswith(prefix):
+            return f"{label} {name[len(prefix):]} ({unit})", scale
+    return name, 1.0
+
+
+def _posterior_section(study: Study, tables: Tables, prefix: str) -> str:
     post = study.posterior
     if post is None:
         return _absent(f"the Bayesian estimator was {study.bayes_note}.")
@@ -237,17 +234,21 @@ def _posterior_section(study: Study) -> str:
     values = np.concatenate([post.youngs_modulus, post.cov, post.sigma])
     cis = np.concatenate([post.youngs_modulus_ci95, post.cov_ci95, post.sigma_ci95])
     for name, v, ci, r, e, t in zip(post.parameter_names, values, cis, post.rhat, post.ess, post.autocorr_time):
-        rows.append((name, f"{v:.4g}", f"[{ci[0]:.4g}, {ci[1]:.4g}]", f"{r:.3f}", f"{e:.0f}", f"{t:.1f}"))
+        label, scale = _posterior_name(name)
+        rows.append((label, float(v) * scale, _pair(ci, scale), float(r), float(e), float(t)))
     status = "converged" if post.converged else "NOT converged (R-hat >= 1.05 or fewer than 20 autocorrelation times)"
     return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus "
-                    "and CoV (arviz).", "posterior plots") +
-            html_table(["parameter", "median", "95 % interval", "R-hat", "bulk ESS", "autocorr. time (steps)"], rows) +
+                        "(GPa) and CoV (%) (arviz).", "posterior plots") +
+            tables.add(f"{prefix}posterior", ["parameter (unit)", "median (parameter's unit)",
+                                              "95 % interval (parameter's unit)", "R-hat (-)", "bulk ESS (draws)",
+                                              "autocorr. time (steps)"], rows,
+                       ["", ".4g", ".4g", ".3f", ".0f", ".1f"]) +
             f'<p class="note">{post.walkers} walkers x {post.steps} steps after {post.burn} burn-in, seed {post.seed}, '
             f"acceptance {post.acceptance_fraction:.2f}, forward table error {post.forward_error:.1e}: {_e(status)}. "
-            f"sigma_modeK is mode K's relative model/measurement error.</p>")
+            f"sigma modeK is mode K's relative model/measurement error, in %.</p>")
 
 
-def _accuracy_section(study: Study) -> str:
+def _accuracy_section(study: Study, tables: Tables, prefix: str) -> str:
     acc = study.accuracy
     if acc is None:
         return _absent(study.accuracy_note)
@@ -259,12 +260,13 @@ def _accuracy_section(study: Study) -> str:
     ref = acc.exact if acc.exact is not None else mc
     against = (f"the exact reference ({ref.method} Gauss rule over exact eigen-solves)" if acc.exact is not None
                else f"the {acc.samples}-sample Monte Carlo")
-    header = ["mode", "ref. mean (Hz)", "ref. std (Hz)", "MC mean (Hz)", "MC std (Hz)",
-              *[f"{m} (%)" for m in mean_err]]
-    rows = [[k + 1, f"{ref.mean_hz[k]:.3f}", f"{ref.std_hz[k]:.4f}", f"{mc.mean_hz[k]:.2f} ± {se_mean[k]:.2f}",
-             f"{mc.std_hz[k]:.3f} ± {se_std[k]:.3f}",
-             *[f"{mean_err[m][k]:+.3f} / {std_err[m][k]:+.2f}" for m in mean_err]]
+    header = ["mode", "ref. mean (Hz)", "ref. std (Hz)", "MC mean (Hz)", "MC mean SE (Hz)", "MC std (Hz)",
+              "MC std SE (Hz)", *[f"{m} {what} error (%)" for m in mean_err for what in ("mean", "std")]]
+    rows = [[k + 1, float(ref.mean_hz[k]), float(ref.std_hz[k]), float(mc.mean_hz[k]), float(se_mean[k]),
+             float(mc.std_hz[k]), float(se_std[k]),
+             *[float(e[m][k]) for m in mean_err for e in (mean_err, std_err)]]
             for k in range(ref.count)]
+    formats = ["", ".3f", ".4f", ".2f", ".2f", ".3f", ".3f", *[f for _ in mean_err for f in ("+.3f", "+.2f")]]
     adaptive = acc.methods.get("adaptive")
     which = ("" if adaptive is None or adaptive.refined is None else
              " The adaptive strategy refined modes "
@@ -272,14 +274,14 @@ def _accuracy_section(study: Study) -> str:
     return (html_figure(fig, f"Relative errors of the frequency moments of the identified model against {against}; "
                     f"'mc' is the seeded Monte Carlo ({acc.samples} samples, seed {acc.reference.seed}) and grey its "
                     "3 standard errors; dotted: +-1 %.", "SMR accuracy bars") +
-            html_table(header, rows, left=0) +
+            tables.add(f"{prefix}accuracy", header, rows, formats, left=0) +
             '<p class="note">As in the paper\'s Figure 11 (Monte Carlo of 10 000 samples) and '
             "benchmarks/smr_accuracy.py: a Monte Carlo of a few hundred samples has standard errors of several % on "
             "the std, larger than the SMR errors, so the errors are read against the noise-free quadrature where it "
             f"is affordable (up to 4 random joints), the Monte Carlo being one more estimate.{_e(which)}</p>")
 
 
-def _band_section(study: Study) -> str:
+def _band_section(study: Study, tables: Tables, prefix: str) -> str:
     if study.band is None:
         return _absent(study.band_note)
     band = study.band
@@ -297,16 +299,18 @@ def _band_section(study: Study) -> str:
             "especially near antiresonances, the band is less trustworthy than at the peaks.</p>")
 
 
-def _study_html(study: Study, number: int) -> str:
-    sections = [("design", _design(study))]
+def _study_html(study: Study, number: int, tables: Tables) -> str:
+    prefix = f"{number}_"
+    sections = [("design", _design(study, tables, prefix))]
     if study.extraction is not None:
         caption = f"Measured |H| ({study.campaign.quantity}) of every test, one panel per sensor."
         sections.append(("frf", html_figure(frf_overlay_figure(study.extraction.sets), caption, "measured FRFs")))
     else:
         sections.append(("frf", _absent(study.extraction_note)))
-    sections += [("modes", _modes_section(study)), ("nominal", _nominal_section(study)),
-                 ("joints", _joints_section(study)), ("posterior", _posterior_section(study)),
-                 ("accuracy", _accuracy_section(study)), ("band", _band_section(study))]
+    sections += [(key, part(study, tables, prefix)) for key, part in (
+        ("modes", _modes_section), ("shapes", shapes_section), ("nominal", _nominal_section),
+        ("joints", _joints_section), ("posterior", _posterior_section), ("accuracy", _accuracy_section),
+        ("band", _band_section))]
     body = "".join(f'<h3 id="{_anchor(study.name, key)}">{number}.{i} {_e(SECTION_TITLES[key])}</h3>{content}'
                    for i, (key, content) in enumerate(sections, start=1))
     return f'<h2 id="{_anchor(study.name)}">{number}. {_e(study.name)} {_badge(study.campaign)}</h2>{body}'
@@ -314,7 +318,7 @@ def _study_html(study: Study, number: int) -> str:
 
 # -------------------------------------------------------------------------------- section 5
 
-def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
+def _prediction_html(pred: Prediction, number: int, sub: int, tables: Tables) -> str:
     c = pred.comparison
     measured = pred.extraction.frequency_hz()
     n = c.modes.size
@@ -324,17 +328,18 @@ def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
     std_pct = 100.0 * c.predicted_std_hz / reference
     fig = prediction_figure(pred.band, pred.extraction.sets, 0, samples_pct, std_pct, measured_pct)
     used = np.isfinite(measured[:, :n]).sum(axis=0)
-    rows = [(int(m), f"{pm:.2f}", _num(mm, ".2f"), _num(100 * e, "+.2f"), f"{ps:.3f}", _num(ms, ".3f"),
-             _num(r, ".2f"), f"{u}/{measured.shape[0]}")
+    rows = [(int(m), float(pm), float(mm), float(100 * e), float(ps), float(ms), float(r), f"{u}/{measured.shape[0]}")
             for m, pm, mm, e, ps, ms, r, u in zip(c.modes, c.predicted_mean_hz, c.measured_mean_hz, c.mean_rel_error,
                                                   c.predicted_std_hz, c.measured_std_hz, c.std_ratio, used)]
     named = {j.group for j in pred.campaign.frame.joints} | set(pred.campaign.frame.joint_names)
     kept = [j.name for j in pred.campaign.frame.joints if j.group not in pred.sources and j.name not in pred.sources]
-    sources = html_table(["joint group", "joints", "E (GPa)", "E 95 %", "CoV", "CoV 95 %", "identified on"],
-                     [(g, ", ".join(j.name for j in pred.frame.joints if j.group == g or j.name == g),
-                       f"{s.youngs_modulus_pa / 1e9:.4g}", _ci(s.youngs_modulus_ci95, 1e9), f"{s.cov:.4g}",
-                       _ci(s.cov_ci95), f"{s.campaign} ({s.method})") for g, s in pred.sources.items() if g in named],
-                     left=2, wrap=True)
+    sources = tables.add(f"p{sub}_sources", ["joint group", "joints", "E (GPa)", "E 95 % interval (GPa)", "CoV (%)",
+                                             "CoV 95 % interval (%)", "identified on"],
+                         [(g, ", ".join(j.name for j in pred.frame.joints if j.group == g or j.name == g),
+                           s.youngs_modulus_pa / 1e9, _pair(s.youngs_modulus_ci95, 1e-9), 100 * s.cov,
+                           _pair(s.cov_ci95, 100.0), f"{s.campaign} ({s.method})")
+                          for g, s in pred.sources.items() if g in named],
+                         ["", "", ".4g", ".4g", ".3g", ".3g", ""], left=2, wrap=True)
     kept_note = f" Joints {', '.join(kept)} keep the frame file's model." if kept else ""
     return (f'<h3 id="{_anchor("section5", pred.name)}">{number}.{sub} {_e(pred.name)} {_badge(pred.campaign)}</h3>'
             f"<p>{_e(pred.campaign.name)}: {len(pred.extraction.tests)} tests. Joint models applied:{_e(kept_note)}</p>"
@@ -343,8 +348,10 @@ def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
                     f"measured FRFs at sensor {pred.band.sensors[0]}. Right: per mode, the predicted spread (5-95 % "
                     "of the band's Monte Carlo frequencies, and the adaptive SMR mean +- std) against the measured "
                     "frequencies of every test, all in % of the predicted mean.", f"section 5 prediction {pred.name}") +
-            html_table(["mode", "predicted mean (Hz)", "measured mean (Hz)", "mean error (%)", "predicted std (Hz)",
-                    "measured std (Hz)", "std ratio", "tests used"], rows, left=0) +
+            tables.add(f"p{sub}_frequencies", ["mode", "predicted mean (Hz)", "measured mean (Hz)", "mean error (%)",
+                                               "predicted std (Hz)", "measured std (Hz)", "std ratio (-)",
+                                               "tests used"], rows,
+                       ["", ".2f", ".2f", "+.2f", ".3f", ".3f", ".2f", ""], left=0) +
             '<p class="note">Predicted: adaptive SMR moments of the frame with the one-bolt joint models. Measured: '
             "mean and standard deviation (ddof 1, NaN-aware) of the circle-fit frequencies over the tests. "
             "std ratio = predicted / measured.</p>" +
@@ -356,16 +363,16 @@ def _prediction_html(pred: Prediction, number: int, sub: int) -> str:
 
 # ------------------------------------------------------------------------------------ the page
 
-def _steps_table(run: Run) -> str:
+def _steps_table(run: Run, tables: Tables) -> str:
     """Every step's wall time; circle fits of several campaigns run in parallel processes, so their
     times overlap the run's "load and circle-fit" step instead of adding to it.
     """
-    rows = [("(run)", s.name, s.detail, "-" if s.seed is None else s.seed, f"{s.wall_time_s:.2f}") for s in run.steps]
+    rows = [("(run)", s.name, s.detail, s.seed, float(s.wall_time_s)) for s in run.steps]
     items: list[Study | Prediction] = [*run.studies, *run.predictions]
     for item in items:
-        rows += [(item.name, s.name, s.detail, "-" if s.seed is None else s.seed, f"{s.wall_time_s:.2f}")
-                 for s in item.steps]
-    return html_table(["campaign", "step", "detail", "seed", "wall time (s)"], rows, left=3)
+        rows += [(item.name, s.name, s.detail, s.seed, float(s.wall_time_s)) for s in item.steps]
+    return tables.add("steps", ["campaign", "step", "detail", "seed", "wall time (s)"], rows, ["", "", "", "", ".2f"],
+                      left=3)
 
 
 def _limits(run: Run) -> str:
@@ -398,13 +405,27 @@ def _limits(run: Run) -> str:
 
 
 def render_report(run: Run, total_wall_s: float | None = None) -> str:
-    """The report page of ``run`` (module notes): one self-contained HTML document.
+    """The report page of ``run`` (module notes): one self-contained HTML document (`report_files`'s index.html).
 
     Parameters
     ----------
     run : studies and predictions (`workbench.workflow.study.report_run` or `demo_run`).
     total_wall_s : the whole command's wall time, s, shown in "what was done".
     """
+    return report_files(run, total_wall_s)["index.html"]
+
+
+def report_files(run: Run, total_wall_s: float | None = None) -> dict[str, str]:
+    """The report's files: ``index.html`` and one CSV per table of the page (`workbench.report.tables`),
+    file name -> text, for the command's output set.
+
+    Parameters
+    ----------
+    run : studies and predictions (`workbench.workflow.study.report_run` or `demo_run`).
+    total_wall_s : the whole command's wall time, s, shown in "what was done".
+    """
+    tables = Tables()
+    summary = summary_box(run, tables)
     campaigns = [s.campaign for s in run.studies] + [p.campaign for p in run.predictions]
     synthetic = [c for c in campaigns if c.synthetic]
     if synthetic:
@@ -420,7 +441,7 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
     toc, parts = [], []
     for n, study in enumerate(run.studies, start=1):
         toc.append(f'<a href="#{_anchor(study.name)}">{n}. {_e(study.name)}</a>')
-        parts.append(_study_html(study, n))
+        parts.append(_study_html(study, n, tables))
     n = len(run.studies)
     if run.predictions:
         n += 1
@@ -430,7 +451,7 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
                      "and predicts the two- and four-bolt frames with them (Figures 14 and 16). Here: the joint models "
                      "identified above (moment matching) on the frames below, against their measured FRFs and "
                      "circle-fit frequencies.</p>" +
-                     "".join(_prediction_html(p, n, i) for i, p in enumerate(run.predictions, start=1)))
+                     "".join(_prediction_html(p, n, i, tables) for i, p in enumerate(run.predictions, start=1)))
     for key in ("done", "limits"):
         n += 1
         toc.append(f'<a href="#{key}">{n}. {_e(SECTION_TITLES[key])}</a>')
@@ -441,12 +462,15 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
                          f"{run.samples} Monte Carlo samples; emcee {run.bayes_steps} steps where run.{_e(total)} "
                          f"workbench {_e(__version__)}, Python {_e(platform.python_version())}, numpy "
                          f"{_e(np.__version__)}. The circle fits' times are measured in the processes that ran "
-                         "them and overlap the run's load step.</p>" + _steps_table(run))
+                         "them and overlap the run's load step.</p>" + _steps_table(run, tables))
         else:
             parts.append(f'<h2 id="limits">{n}. {_e(SECTION_TITLES["limits"])}</h2>' + _limits(run))
-    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+    page = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"><title>{_e(run.title)}</title>"
-            f"<style>{CSS}</style></head><body><main><h1>{_e(run.title)}</h1>{banner}"
+            f"<style>{CSS}{SUMMARY_CSS}</style></head><body><main><h1>{_e(run.title)}</h1>{banner}{summary}"
             "<p>Bolted-joint variability after Ghienne, Laurent &amp; Blanz&eacute;, MSSP 136 (2020) 106510: "
             "circle-fit extraction, joint identification (eq. 1, 10-11; Bayesian), propagation (SMR, eq. 5-7) and "
-            f"stochastic FRFs.</p><nav>{'<br>'.join(toc)}</nav>{''.join(parts)}</main></body></html>\n")
+            f"stochastic FRFs. Units: moduli in GPa, frequencies in Hz, damping ratios and CoV in %; every table is "
+            f"also a CSV file beside this page (linked below it).</p><nav>{'<br>'.join(toc)}</nav>{''.join(parts)}"
+            "</main></body></html>\n")
+    return {"index.html": page, **tables.files()}

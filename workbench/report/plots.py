@@ -25,10 +25,11 @@ from workbench.io.outputs import write_file  # noqa: E402
 from workbench.model.modal import FRFSet  # noqa: E402
 from workbench.uq.prediction import FRFBand  # noqa: E402
 from workbench.workflow.measured import NyquistData  # noqa: E402
+from workbench.workflow.report_inputs import ShapeComparison  # noqa: E402
 
 __all__ = ["plt", "plot_moment_errors", "moment_error_figure", "save_figure", "figure_png", "frf_overlay_figure",
            "plot_frf_band", "band_figure", "band_zoom_figure", "nyquist_figure", "forest_figure", "posterior_figure",
-           "plot_frequency_spread", "prediction_figure"]
+           "plot_frequency_spread", "prediction_figure", "shape_figure", "mac_figure"]
 
 _COLOURS = {"smr1": "tab:orange", "smr2": "tab:blue", "adaptive": "tab:green", "pert2": "tab:purple",
             "mc": "tab:gray", "moments": "tab:blue", "bayes": "tab:red"}
@@ -192,10 +193,12 @@ def forest_figure(rows: Sequence[Mapping[str, Any]]) -> Figure:
     """
     fig, axes = plt.subplots(1, 2, figsize=(10, 0.55 * len(rows) + 1.4), squeeze=False, layout="constrained")
     y = np.arange(len(rows))[::-1]
-    for ax, key, label in ((axes[0, 0], "modulus", "mean joint modulus E (GPa)"), (axes[0, 1], "cov", "CoV of E")):
+    for ax, key, label in ((axes[0, 0], "modulus", "mean joint modulus E (GPa)"),
+                           (axes[0, 1], "cov", "CoV of E (%)")):
+        scale = 1.0 if key == "modulus" else 100.0  # CoV drawn in %
         for yi, row in zip(y, rows):
-            value = row["modulus_gpa" if key == "modulus" else "cov"]
-            ci = row[f"{key}_ci"]
+            value = scale * row["modulus_gpa" if key == "modulus" else "cov"]
+            ci = None if row[f"{key}_ci"] is None else scale * np.asarray(row[f"{key}_ci"], float)
             colour = _COLOURS.get(str(row["method"]), "k")
             if ci is not None:
                 ax.errorbar(value, yi, xerr=[[value - ci[0]], [ci[1] - value]], fmt="o", color=colour, capsize=4)
@@ -222,14 +225,14 @@ def posterior_figure(posterior, az) -> object:
     values = {}
     for g in groups:
         values[f"E_{g} (GPa)"] = post[f"youngs_modulus_{g}"].values / 1e9
-        values[f"CoV_{g}"] = post[f"cov_{g}"].values
+        values[f"CoV_{g} (%)"] = 100 * post[f"cov_{g}"].values
     scaled = az.from_dict(posterior=values)
     fig, axes = plt.subplots(len(groups), 3, figsize=(11, 3.0 * len(groups)), squeeze=False, layout="constrained")
     with warnings.catch_warnings():
         # arviz 0.x calls a matplotlib helper that matplotlib 3.11 deprecates: theirs to fix, not a fault here
         warnings.filterwarnings("ignore", category=matplotlib.MatplotlibDeprecationWarning)
         for row, g in enumerate(groups):
-            names = [f"E_{g} (GPa)", f"CoV_{g}"]
+            names = [f"E_{g} (GPa)", f"CoV_{g} (%)"]
             az.plot_posterior(scaled, var_names=names, ax=axes[row, :2], hdi_prob=0.95, point_estimate="median",
                               textsize=8)
             az.plot_pair(scaled, var_names=names, kind="hexbin", ax=axes[row, 2], textsize=8)
@@ -342,4 +345,50 @@ def prediction_figure(band: FRFBand, measured: Mapping[object, FRFSet], sensor: 
     plot_frequency_spread(axes[1], predicted_samples_pct, predicted_std_pct, measured_pct,
                           "eigenfrequencies: predicted and measured spread")
     axes[1].legend(fontsize=7, loc="best")
+    return fig
+
+
+# ------------------------------------------------------------------------- mode shapes and MAC
+
+def shape_figure(shapes: ShapeComparison, ncols: int = 3) -> Figure:
+    """Measured against model mode shapes at the sensors, one panel per measured mode.
+
+    Each shape is scaled to a peak of 1 (the model's paired mode signed as the measured one), so that
+    the panel compares forms; both are receptance modal constants ``phi(s) phi(exc)`` (1/kg) before scaling.
+    """
+    fig, axes = _grid(len(shapes.modes), ncols, (3.6, 2.5))
+    x = np.arange(len(shapes.sensors))
+    for k, ax in enumerate(axes):
+        measured = shapes.measured[k]
+        model = shapes.model[shapes.paired[k]]
+        peak = np.nanmax(np.abs(measured)) if np.isfinite(measured).any() else 1.0
+        sign = np.sign(np.nansum(measured * model)) or 1.0
+        ax.plot(x, sign * model / np.max(np.abs(model)), "s--", color=_BAND, label="model (nominal)")
+        ax.plot(x, measured / (peak or 1.0), "o-", color="k", label="measured (mean of tests)")
+        ax.axhline(0.0, color="0.6", lw=0.6)
+        ax.set_xticks(x)
+        ax.set_xticklabels(shapes.sensors, fontsize=7, rotation=45 if len(x) > 4 else 0)
+        ax.set_ylim(-1.15, 1.15)
+        ax.set_title(f"mode {shapes.modes[k]} / model {shapes.model_modes[shapes.paired[k]]} "
+                     f"({shapes.model_hz[shapes.paired[k]]:.1f} Hz)", fontsize=9)
+        if k == 0:
+            ax.legend(fontsize=7)
+            ax.set_ylabel("shape / peak (-)")
+    return fig
+
+
+def mac_figure(shapes: ShapeComparison) -> Figure:
+    """The MAC matrix of the measured shapes (rows) against the model's (columns), values written in."""
+    fig, ax = plt.subplots(figsize=(1.0 + 0.55 * shapes.model_modes.size, 0.9 + 0.45 * shapes.modes.size),
+                           layout="constrained")
+    image = ax.imshow(shapes.mac, vmin=0.0, vmax=1.0, cmap="Blues", aspect="auto")
+    for (i, j), value in np.ndenumerate(shapes.mac):
+        if np.isfinite(value):
+            ax.text(j, i, f"{value:.2f}", ha="center", va="center", fontsize=7,
+                    color="white" if value > 0.6 else "k")
+    ax.set_xticks(np.arange(shapes.model_modes.size), [str(m) for m in shapes.model_modes])
+    ax.set_yticks(np.arange(shapes.modes.size), [str(m) for m in shapes.modes])
+    ax.set_xlabel("model mode (nominal, elastic)")
+    ax.set_ylabel("measured mode")
+    fig.colorbar(image, ax=ax, label="MAC (-)")
     return fig

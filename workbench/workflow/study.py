@@ -23,8 +23,8 @@ through `workbench.io.campaign`, imported where they are loaded.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +58,8 @@ from workbench.workflow.measured import (
     load_campaigns,
     measured_modes,
 )
+from workbench.workflow.report_inputs import load_for_report
+from workbench.workflow.steps import Notify, Step, Steps
 
 __all__ = ["ACCURACY_METHODS", "Step", "Accuracy", "JointSource", "Study", "study_campaign", "joint_sources",
            "Prediction", "predict_campaign", "Run", "identify_sources", "report_run", "demo_run", "DEMO_STUDIES",
@@ -65,39 +67,7 @@ __all__ = ["ACCURACY_METHODS", "Step", "Accuracy", "JointSource", "Study", "stud
 
 ACCURACY_METHODS = ("smr1", "smr2", "adaptive", "pert2")  # Figure 11's methods, and our adaptive one
 
-Notify = Callable[[str], None] | None
-
-
 # ------------------------------------------------------------------------------------ one campaign
-
-@dataclass(frozen=True)
-class Step:
-    """One step of the run, for the report's "what was done": wall time (s), seed where random."""
-
-    name: str
-    wall_time_s: float
-    detail: str = ""
-    seed: int | None = None
-
-
-class _Steps:
-    """Times the steps and tells ``notify`` one line as each ends."""
-
-    def __init__(self, notify: Notify, prefix: str):
-        self.items: list[Step] = []
-        self.notify, self.prefix = notify, prefix
-
-    def add(self, name: str, start: float | None, detail: str = "", seed: int | None = None,
-            wall_time_s: float | None = None) -> None:
-        if wall_time_s is None:
-            if start is None:
-                raise ValueError(f"step {name!r}: give its start time or its wall time")
-            wall_time_s = time.perf_counter() - start
-        step = Step(name, wall_time_s, detail, seed)
-        self.items.append(step)
-        if self.notify is not None:
-            self.notify(f"{self.prefix}{name}: {detail} ({step.wall_time_s:.1f} s)")
-
 
 @dataclass(frozen=True)
 class Accuracy:
@@ -241,7 +211,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     mapper : runs the Monte Carlo reference's chunks (`workbench.workflow.execution.mapper`).
     progress : called as the long steps advance (`workbench.progress`); notify : one line per finished step.
     """
-    steps = _Steps(notify, f"{campaign_label(campaign)}: ")
+    steps = Steps(notify, f"{campaign_label(campaign)}: ")
     source = str(campaign.path or campaign.name)
     extraction_note = ""
     if extraction is None and campaign.frf is not None:
@@ -355,7 +325,7 @@ def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, Joi
     ValueError
         A source names no group or joint of the frame.
     """
-    steps = _Steps(notify, f"{campaign_label(campaign)}: ")
+    steps = Steps(notify, f"{campaign_label(campaign)}: ")
     start = time.perf_counter()
     frame = frame_with_joint_models(campaign.frame, _joint_models(sources))
     model = assemble(frame)
@@ -394,6 +364,7 @@ class Run:
     seed: int
     samples: int
     bayes_steps: int
+    diagnosis: dict | None = None  # a diagnosis.json record, in the report's summary where one is part of the run
 
 
 def identify_sources(loaded: Mapping[str, tuple], seed: int = 0) -> dict[str, JointSource]:
@@ -422,24 +393,27 @@ def identify_sources(loaded: Mapping[str, tuple], seed: int = 0) -> dict[str, Jo
 
 def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] = (), seed: int = 0,
                samples: int = 1000, bayes: bool = True, bayes_steps: int = 3000, workers: int = 1,
-               progress: Progress | None = None, notify: Notify = None) -> Run:
-    """`workbench report`: the study of one campaign and, with ``joints_from``, its section 5
-    prediction from the joint models identified (moment matching) on those one-bolt campaigns.
+               bands: Sequence[tuple[float, float]] | None = None, progress: Progress | None = None,
+               notify: Notify = None) -> Run:
+    """`workbench report`: one campaign's study (modes.csv, else a circle fit with ``bands``, Hz:
+    `load_for_report`) and, with ``joints_from``, its section 5 prediction from their joint models.
     """
     start = time.perf_counter()
-    paths = [str(campaign_path), *(str(p) for p in joints_from)]
     with task_mapper(workers, None, progress) as tasks:
-        loaded = load_campaigns(paths, tasks, progress)
-        run_steps = [Step("load and circle-fit", time.perf_counter() - start, f"{len(loaded)} campaign(s)")]
-        campaign, extraction = loaded[str(campaign_path)]
-        study = study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes,
+        campaign, extraction, note = load_for_report(campaign_path, bands, tasks)
+        loaded = load_campaigns([str(p) for p in joints_from], tasks, progress) if joints_from else {}
+        run_steps = [Step("load and circle-fit", time.perf_counter() - start, f"{1 + len(loaded)} campaign(s)")]
+        studied = replace(campaign, frf=None) if extraction is None and note else campaign  # modes.csv as it is
+        study = study_campaign(studied, extraction, seed=seed, samples=samples, bayes=bayes,
                                bayes_steps=bayes_steps, mapper=tasks, progress=progress, notify=notify)
+    study = replace(study, extraction_note=note) if note else study
     predictions: tuple[Prediction, ...] = ()
     if joints_from:
         if extraction is None:
-            raise ValueError(f"{campaign_path}: the campaign has no FRFs to set a prediction against")
+            raise ValueError(f"{campaign_path}: no circle fit of FRFs to set a prediction against"
+                             + (" (the campaign's modes.csv is used: pass --bands to circle-fit)" if note else ""))
         t0 = time.perf_counter()
-        sources = identify_sources({p: loaded[p] for p in paths[1:]}, seed)
+        sources = identify_sources(loaded, seed)
         run_steps.append(Step("joint models of the sources", time.perf_counter() - t0,
                               ", ".join(f"{g} from {s.campaign}" for g, s in sources.items()), seed))
         predictions = (predict_campaign(campaign, extraction, sources, seed=seed, samples=samples,
