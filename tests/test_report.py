@@ -397,3 +397,62 @@ def test_report_bands_set_the_circle_fit(with_modes_csv, tmp_path, capsys):
     assert bands == [(20.0, 35.0), (115.0, 145.0)]
     assert main(["report", str(directory), "--out", str(tmp_path / "bad"), "--bands", "35:20"]) == 2
     assert "--bands" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------ the diagnosis page
+
+@pytest.fixture(scope="module")
+def diagnosed():
+    """An exact joint-stiffness shift on the one-bolt frame, diagnosed (about 10 s): its top candidate is exact."""
+    from test_diagnosis import ONE_BOLT, _data, _deterministic
+
+    from workbench.diagnose.verdict import diagnose, diagnosis_record
+    from workbench.rig.effects import Effect
+
+    frame = _deterministic(ONE_BOLT)
+    found = diagnose(frame, _data(frame, Effect("joint_stiffness_shift", "A", {"factor": 1.5}), count=5, tests=4))
+    return found, diagnosis_record("shifted joint", found)
+
+
+def _diagnosis_page(record, found, tmp_path):
+    from workbench.io.outputs import write_outputs
+    from workbench.report.diagnosis_page import diagnosis_files
+
+    files = diagnosis_files(record, found, True, "test")
+    write_outputs(tmp_path, files)
+    return files["index.html"]
+
+
+def test_diagnosis_page_opens_with_its_verdict_and_lists_every_candidate(diagnosed, tmp_path):
+    found, record = diagnosed
+    assert record["verdict"]["effect"] == "joint_stiffness_shift"  # the injected effect, as test_diagnosis checks
+    text = _diagnosis_page(record, found, tmp_path)
+    assert text.index('id="summary"') < text.index("Where the model misses")
+    summary = dict(read_csv(tmp_path / csv_name("summary"))[1])
+    assert summary["verdict"].startswith("joint_stiffness_shift") and summary["where"] == "A"
+    assert summary["shrinkage"].startswith(f"{100 * record['verdict']['shrinkage']:.1f} %")
+    assert "confidence" in summary
+    header, rows = read_csv(tmp_path / csv_name("candidates"))
+    assert len(rows) == len(record["ranking"]) > 8  # all of them, not the first few
+    for row, entry in zip(rows, record["ranking"]):
+        values = dict(zip(header, row))
+        assert (values["effect"], values["where"]) == (entry["effect"], entry["where"] or "-")
+        assert float(values["held-out RMS rel. frequency error (%)"]) == 100 * entry["heldout_freq_rms_rel_error"]
+    # the residual figure's dots are the verdict's own fit, and the caption names it
+    assert "the verdict's own effect, joint_stiffness_shift @ A, fitted" in visible_text(text)
+    check_units(text)
+
+
+def test_an_exact_candidate_is_never_worded_as_unexplained_zero(diagnosed, tmp_path):
+    found, record = diagnosed
+    text = visible_text(_diagnosis_page(record, found, tmp_path / "accepted"))
+    assert "unexplained 0 %" not in text and "leaves 0 %" not in text
+    top = record["ranking"][0]["heldout_freq_rms_rel_error"] / found.baseline.heldout_freq_rms_rel_error
+    assert top < 0.005 and f"{100 * top:.2g} %" in text  # the share left, said as it is
+    # the same data with the verdict withheld: the page says no shrinkage was accepted and what the best candidate
+    # would leave, never "0 %"
+    refused = dataclasses.replace(found, verdict="unexplained", where=None, shrinkage=0.0, best_hz=None)
+    record = {**record, "verdict": {"effect": "unexplained", "where": None, "shrinkage": 0.0}}
+    text = visible_text(_diagnosis_page(record, refused, tmp_path / "refused"))
+    assert "unexplained 0 %" not in text and "no candidate effect was accepted" in text
+    assert "not accepted" in text and f"{100 * top:.2g} %" in text
