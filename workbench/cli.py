@@ -129,7 +129,13 @@ def _import(args: argparse.Namespace, out: OutputSet) -> str:
 
 def _extract(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.io.campaign import load_campaign
-    from workbench.workflow.measured import extract_campaign
+    from workbench.workflow.measured import (
+        MODES_HEADER,
+        QUALITY_HEADER,
+        SHAPES_HEADER,
+        extract_campaign,
+        extraction_rows,
+    )
 
     campaign = load_campaign(args.campaign)
     bands = None
@@ -139,27 +145,17 @@ def _extract(args: argparse.Namespace, out: OutputSet) -> str:
 
     with mapper(args.workers, args.scheduler, _progress()) as tasks:
         extraction = extract_campaign(campaign, bands, args.count, tasks)
-    modes_rows, quality_rows, flagged = [], [], 0
-    for t, per_mode in extraction.estimates.items():
-        for k, est in enumerate(per_mode, start=1):
-            modes_rows.append((t, k, est.frequency_hz, est.damping_ratio))
-            flagged += bool(est.flags)
-            quality_rows.append((t, k, "combined", est.frequency_hz, est.damping_ratio, est.damping_scatter,
-                                 "", "", est.curves_used, "|".join(est.flags)))
-            for sensor, fit, weight in zip(extraction.sets[t].responses, est.fits, est.weights):
-                quality_rows.append((t, k, sensor, fit.frequency_hz, fit.damping_ratio, fit.damping_scatter,
-                                     fit.circle_error, fit.points_used, weight, "|".join(fit.flags)))
-    out.commit({
-        "modes.csv": csv_text(["test_id", "mode", "frequency_hz", "damping_ratio"], modes_rows),
-        "quality.csv": csv_text(["test_id", "mode", "curve", "frequency_hz", "damping_ratio", "damping_scatter",
-                                 "circle_error", "points_used", "weight", "flags"], quality_rows),
-    })
+    rows = extraction_rows(extraction)
+    headers = {"modes.csv": MODES_HEADER, "shapes.csv": SHAPES_HEADER, "quality.csv": QUALITY_HEADER}
+    out.commit({name: csv_text(list(headers[name]), table) for name, table in rows.items()})
+    flagged = sum(bool(e.flags) for per_mode in extraction.estimates.values() for e in per_mode)
     note = f"; {flagged} flagged (see quality.csv)" if flagged else ""
     return (f"{len(extraction.bands)} modes x {len(extraction.estimates)} tests of {campaign.name!r} by circle fit"
             f"{note}; written to {args.out}")
 
 
 def _identify(args: argparse.Namespace, out: OutputSet) -> str:
+    from workbench.identify.pairing import pair_by_mac
     from workbench.io.campaign import load_campaign
     from workbench.workflow.measured import measured_modes
 
@@ -170,6 +166,7 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
         raise ValueError(f"{args.campaign}: bayes needs every test's frequencies (modes.csv or FRFs); this "
                          "campaign has only published moments (moments.csv): use --method moments")
     model = assemble(campaign.frame)
+    data = pair_by_mac(model, data)  # with measured shapes, mode i is the model mode of its shape, not the i-th
     start = time.perf_counter()
     files: dict[str, str | bytes] = {}
     fit: MomentFit | Posterior

@@ -36,7 +36,7 @@ from workbench.model.frame import Frame, FrameFileError
 from workbench.model.frame_file import frame_to_toml, read_frame, toml_string
 from workbench.model.modal import QUANTITIES, FRFSet
 
-__all__ = ["CampaignError", "Factor", "Campaign", "FACTOR_KINDS", "FRF_COLUMNS", "MODES_COLUMNS",
+__all__ = ["CampaignError", "Factor", "Campaign", "FACTOR_KINDS", "FRF_COLUMNS", "MODES_COLUMNS", "MODES_OPTIONAL",
            "MOMENTS_COLUMNS", "load_campaign", "write_campaign", "campaign_files", "campaign_toml", "frf_set",
            "PAPER_AMPLITUDE_RATIOS", "amplitude_of_tests"]
 
@@ -44,6 +44,9 @@ FACTOR_KINDS = ("tightening", "amplitude", "other")
 REFERENCES = ("force", "voltage")
 FRF_COLUMNS = ("test_id", "sensor", "frequency_hz", "real", "imag")
 MODES_COLUMNS = ("test_id", "mode", "frequency_hz", "damping_ratio")
+# the extraction's own uncertainty and quality flags (CONTRACTS.md section 2): allowed, not read
+MODES_OPTIONAL = ("frequency_hz_ci95_low", "frequency_hz_ci95_high", "damping_ratio_ci95_low",
+                  "damping_ratio_ci95_high", "flags")
 MOMENTS_COLUMNS = ("mode", "mean_hz", "std_hz")
 _CAMPAIGN_KEYS = {"name", "description", "frame", "quantity", "reference", "synthetic", "source", "factors"}
 
@@ -114,8 +117,11 @@ def _read_toml(path: Path) -> dict[str, Any]:
         fail(path, "not UTF-8 text")
 
 
-def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, ...]) -> pd.DataFrame:
-    """Read a CSV (or parquet) with exactly ``columns``; numbers checked finite; rows keep file lines."""
+def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, ...],
+                optional: tuple[str, ...] = ()) -> pd.DataFrame:
+    """Read a CSV (or parquet) with exactly ``columns``, and any of the ``optional`` ones, which are
+    ignored (the contract's "a reader may ignore"); numbers checked finite; rows keep file lines.
+    """
     try:
         if path.suffix == ".parquet":
             table = pd.read_parquet(path)
@@ -130,7 +136,7 @@ def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, .
     except (pd.errors.ParserError, pd.errors.ParserWarning, pd.errors.EmptyDataError, ValueError, OSError) as exc:
         fail(path, f"cannot be read as a table: {' '.join(str(exc).split())}")
     missing = [c for c in columns if c not in table.columns]
-    extra = [c for c in table.columns if c not in columns]
+    extra = [c for c in table.columns if c not in columns and c not in optional]
     if missing:
         fail(path, f"missing column(s) {', '.join(missing)} (expected {', '.join(columns)})")
     if extra:
@@ -260,7 +266,7 @@ def _read_frf(frf_path: Path, frame: Frame, ids: set[str], design_path: Path) ->
 
 
 def _read_modes(modes_path: Path, ids: set[str], design_path: Path) -> pd.DataFrame:
-    modes = _read_table(modes_path, MODES_COLUMNS, ("test_id",))
+    modes = _read_table(modes_path, MODES_COLUMNS, ("test_id",), MODES_OPTIONAL)
     check_tests(modes, modes_path, ids, design_path)
     check_duplicates(modes, ["test_id", "mode"], modes_path)
     check_values(modes, modes_path, {"mode": "integer >= 1", "frequency_hz": "positive",

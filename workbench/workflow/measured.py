@@ -22,14 +22,23 @@ import pandas as pd
 from workbench.extraction.circlefit import to_mobility
 from workbench.extraction.modes import ModeEstimate, extract_tests
 from workbench.extraction.records import MeasuredModes
-from workbench.io.campaign import Campaign, CampaignError, amplitude_of_tests, frf_set, load_campaign
+from workbench.io.campaign import (
+    MODES_COLUMNS,
+    MODES_OPTIONAL,
+    Campaign,
+    CampaignError,
+    amplitude_of_tests,
+    frf_set,
+    load_campaign,
+)
 from workbench.model.modal import modal_superposition
 from workbench.progress import Progress
 from workbench.tasks import Mapper, serial_mapper
 from workbench.uq.prediction import FRFBand
 
 __all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract", "load_campaigns",
-           "campaign_label", "frequency_axis", "NyquistData", "nyquist_data", "mode_windows", "measured_modes"]
+           "campaign_label", "frequency_axis", "extraction_rows", "MODES_HEADER", "SHAPES_HEADER",
+           "QUALITY_HEADER", "NyquistData", "nyquist_data", "mode_windows", "measured_modes"]
 
 # A mode whose combined fit carries one of these flags is left out of that test, as in
 # `measured_modes`: the circle is lost in noise or is not a circle.
@@ -98,12 +107,43 @@ class Extraction:
                              modal_constants=self._modal_constants(), source=source)
 
     def _modal_constants(self) -> np.ndarray | None:
-        """(n_tests, n_modes, n_sensors) complex receptance modal constants of every fit, 1/kg, or None
-        when the tests were not measured at the same number of sensors.
+        """(n_tests, n_modes, n_sensors) complex receptance modal constants of every fit, 1/kg (NaN where
+        the fit is unusable, `UNUSABLE_FLAGS`), or None when the tests were not measured at the same
+        number of sensors.
         """
-        values = [[[f.modal_constant for f in e.fits] for e in self.estimates[t]] for t in self.tests]
+        # a curve whose circle is lost in noise or is no circle gives no constant: NaN there
+        values = [[[np.nan if set(UNUSABLE_FLAGS) & set(f.flags) else f.modal_constant for f in e.fits]
+                   for e in self.estimates[t]] for t in self.tests]
         sizes = {len(fits) for per_test in values for fits in per_test}
         return np.array(values, complex) if len(sizes) == 1 else None
+
+
+MODES_HEADER = MODES_COLUMNS + MODES_OPTIONAL
+SHAPES_HEADER = ("test_id", "mode", "sensor", "modal_constant_re", "modal_constant_im")
+QUALITY_HEADER = ("test_id", "mode", "curve", "frequency_hz", "damping_ratio", "damping_scatter", "circle_error",
+                  "points_used", "weight", "flags")
+
+
+def extraction_rows(extraction: Extraction) -> dict[str, list[tuple]]:
+    """The rows of ``modes.csv``, ``shapes.csv`` and ``quality.csv`` (CONTRACTS.md section 2), headers above.
+
+    modes.csv: the combined estimate of every test and mode with its 95 % intervals and ``;``-separated
+    flags; shapes.csv: every sensor's receptance modal constant (1/kg) of the mode, from that sensor's fit;
+    quality.csv: the combined estimate and each curve's fit, with the weights they were combined with.
+    """
+    modes, shapes, quality = [], [], []
+    for t, per_mode in extraction.estimates.items():
+        sensors = extraction.sets[t].responses
+        for k, est in enumerate(per_mode, start=1):
+            modes.append((t, k, est.frequency_hz, est.damping_ratio, *est.frequency_ci95_hz, *est.damping_ci95,
+                          ";".join(est.flags)))
+            quality.append((t, k, "combined", est.frequency_hz, est.damping_ratio, est.damping_scatter, "", "",
+                            est.curves_used, ";".join(est.flags)))
+            for sensor, fit, weight in zip(sensors, est.fits, est.weights):
+                shapes.append((t, k, sensor, fit.modal_constant.real, fit.modal_constant.imag))
+                quality.append((t, k, sensor, fit.frequency_hz, fit.damping_ratio, fit.damping_scatter,
+                                fit.circle_error, fit.points_used, weight, ";".join(fit.flags)))
+    return {"modes.csv": modes, "shapes.csv": shapes, "quality.csv": quality}
 
 
 def extract_campaign(campaign, bands=None, count: int | None = None, mapper: Mapper | None = None) -> Extraction:
