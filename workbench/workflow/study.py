@@ -38,7 +38,16 @@ from workbench.model.frame import Frame
 from workbench.model.joints import frame_with_joint_models
 from workbench.progress import Progress
 from workbench.tasks import Mapper
-from workbench.uq.prediction import FrequencyComparison, FRFBand, compare_frequencies, frf_band
+from workbench.uq.prediction import (
+    BAND_CHECKS,
+    BAND_QUIET_LINES,
+    BAND_SAMPLES,
+    FrequencyComparison,
+    FRFBand,
+    band_detail,
+    compare_frequencies,
+    frf_band,
+)
 from workbench.uq.smr import propagate
 from workbench.uq.stochastic import (
     TENSOR_LIMIT,
@@ -267,8 +276,9 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     else:
         start = time.perf_counter()
         band = frf_band(identified, joints, frequency_axis(extraction), extraction.mean_damping(),
-                        quantity=campaign.quantity, samples=samples, seed=seed, progress=progress)
-        steps.add("stochastic FRF", start, f"{samples} samples, {band.natural_hz.shape[1]} modes summed", seed)
+                        quantity=campaign.quantity, samples=BAND_SAMPLES, seed=seed, quiet_lines=BAND_QUIET_LINES,
+                        check_samples=BAND_CHECKS, progress=progress)
+        steps.add("stochastic FRF", start, band_detail(band), seed)
     return Study(campaign, extraction, data, fit, sources, posterior, accuracy, band, tuple(steps.items),
                  extraction_note, bayes_note, accuracy_note, band_note)
 
@@ -338,8 +348,9 @@ def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, Joi
     steps.add("predicted moments (adaptive SMR)", start, f"{count} modes, largest mean error {100 * worst:.2f} %")
     start = time.perf_counter()
     band = frf_band(model, joints, frequency_axis(extraction), extraction.mean_damping(), quantity=campaign.quantity,
-                    samples=samples, seed=seed, progress=progress)
-    steps.add("predicted FRF band", start, f"{samples} samples", seed)
+                    samples=BAND_SAMPLES, seed=seed, quiet_lines=BAND_QUIET_LINES, check_samples=BAND_CHECKS,
+                    progress=progress)
+    steps.add("predicted FRF band", start, band_detail(band), seed)
     return Prediction(campaign, extraction, dict(sources), frame, moments, band, comparison, tuple(steps.items))
 
 
