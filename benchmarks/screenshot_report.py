@@ -1,7 +1,8 @@
 """Open a report in headless Chromium: console errors, outside requests, and a full-page screenshot.
 
-Fails (exit 1) on any console error, page error, failed request, or request to anything but a
-``file:`` or ``data:`` address: the report must be self-contained and open offline. Prints what it
+Fails (exit 1) on any console error, page error, failed request, request to anything but a
+``file:`` or ``data:`` address (the report must be self-contained and open offline), or a page
+without its summary box. tests/test_report_browser.py runs the same checks in the test suite. Prints what it
 found, and saves a full-page PNG beside the report (or ``--png``). Not part of CI.
 
 Drives the system's Chromium (Debian: ``apt-get install chromium``) with Python playwright
@@ -38,6 +39,8 @@ def inspect(report: Path, png: Path, executable: str = CHROMIUM, width: int = 12
         page.on("request", lambda r: requests.append(r.url))
         page.on("requestfailed", lambda r: problems.append(f"failed request: {r.url[:120]} ({r.failure})"))
         page.goto(report.resolve().as_uri(), wait_until="load")
+        if not page.locator("section#summary").count():
+            problems.append("no summary box (section#summary) at the top of the page")
         images = page.evaluate("""() => Array.from(document.images).map(i => [i.alt, i.naturalWidth, i.complete])""")
         height = page.evaluate("() => document.documentElement.scrollHeight")
         overflow = page.evaluate("""() => { const edge = document.querySelector('main').getBoundingClientRect().right;

@@ -354,6 +354,12 @@ def test_shape_comparison_of_the_model_with_itself_is_exact():
     np.testing.assert_allclose(np.diag(shapes.mac[:, :5]), 1.0, rtol=1e-10)
     np.testing.assert_allclose(shapes.mac[:, :5], mac(exact.T, exact.T), atol=1e-10)
     np.testing.assert_allclose(np.abs(dominant_real(exact[0] * 1j)), np.abs(exact[0]))
+    # a sensor whose fits are all unusable for a mode (NaN): that mode's MAC is taken on the other sensors
+    lost = data.modal_constants.copy()
+    lost[:, 0, 1] = np.nan
+    shapes = shape_comparison(campaign, data, [s.name for s in frame.sensors], constants=lost)
+    assert shapes is not None and np.isnan(shapes.measured[0, 1])
+    np.testing.assert_allclose(shapes.mac[0, 0], 1.0, rtol=1e-10)
 
 
 @pytest.fixture(scope="module")

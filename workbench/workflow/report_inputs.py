@@ -122,7 +122,8 @@ class ShapeComparison:
     model_modes : (n_model,) elastic model mode numbers (1 = lowest elastic mode).
     model_hz : (n_model,) their frequencies, Hz.
     model : (n_model, n_sensors) the model's ``phi(s) phi(exc)``, 1/kg.
-    mac : (n_measured, n_model) MAC of each measured shape with each model shape.
+    mac : (n_measured, n_model) MAC of each measured shape with each model shape, on the sensors where
+        the measured shape is known (NaN with fewer than two).
     paired : (n_measured,) index into ``model_modes`` paired with each measured mode (by order, as
         the identification pairs them).
     """
@@ -203,10 +204,11 @@ def shape_comparison(campaign: Campaign, data: MeasuredModes, sensors: Sequence[
         measured.append(shape)
         counts.append(count)
     measured_arr = np.array(measured)
-    found = np.all(np.isfinite(measured_arr), axis=1)
     table = np.full((n_measured, elastic.size), np.nan)
-    if found.any():
-        table[found] = mac(measured_arr[found].T, model_constants.T)
+    for k, shape in enumerate(measured_arr):  # each on the sensors where some test's fit of it is usable
+        seen = np.isfinite(shape)
+        if seen.sum() >= 2:
+            table[k] = mac(shape[seen][:, None], model_constants[:, seen].T)[0]
     return ShapeComparison(tuple(sensors), np.asarray(data.modes), measured_arr, np.array(counts),
                            np.arange(1, elastic.size + 1), solved.frequency_hz[elastic], model_constants, table,
                            paired)
