@@ -67,7 +67,9 @@ def test_unesp_no_close_mode_and_intervals_hold_the_estimates(unesp_modes):
     (leakage, the level-dependent joint), which used to flag every fit close_mode; the two-pole fit
     over the four sensors finds no second mode (its "second pole" has the first's shape, MAC 1.000).
     Intervals: finite, holding the estimate (measured at 0.05 -> 0.30 V: mode 2 +-0.001 -> 0.007 Hz,
-    damping within 1 % of its value; mode 1 +-0.002 -> 0.004 Hz, damping -2/+2 % -> -7/+4 %)."""
+    damping -6/+6 % -> -5/+4 %; mode 1 +-0.002 -> 0.004 Hz, damping -66/+66 % -> -49/+49 %: its
+    half-power band holds 3 lines and its misfit is systematic, so its bandwidth is known to
+    `circlefit.LEAKAGE_LINES` lines only)."""
     _, _, estimates = unesp_modes
     for modes in estimates:
         for m in modes:

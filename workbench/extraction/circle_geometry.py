@@ -8,7 +8,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-__all__ = ["taubin", "geometric", "pair_damping"]
+__all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "taubin", "geometric", "pair_damping", "pairs"]
+
+MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
+PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
 
 
 def taubin(z: np.ndarray) -> tuple[complex, float]:
@@ -58,3 +61,19 @@ def pair_damping(omega_a, theta_a, omega_b, theta_b, omega_r: float) -> np.ndarr
     omega_a, omega_b = np.asarray(omega_a, float), np.asarray(omega_b, float)
     numerator = (omega_a**2 - omega_r**2) / omega_a + (omega_r**2 - omega_b**2) / omega_b
     return numerator / (2.0 * omega_r * (np.tan(np.asarray(theta_a) / 2) + np.tan(np.asarray(theta_b) / 2)))
+
+
+def pairs(omega, psi, omega_r, sense):
+    """Pairwise damping estimates from points within the half-power region, widened if needed."""
+    above = (omega > omega_r) & (sense * psi < 0.0)   # above resonance the angle runs on
+    below = (omega < omega_r) & (sense * psi > 0.0)
+    theta = np.abs(psi)
+    for limit in np.radians(PAIR_ANGLES_DEG):
+        a = above & (theta <= limit)
+        b = below & (theta <= limit)
+        if a.sum() >= MIN_SIDE_POINTS and b.sum() >= MIN_SIDE_POINTS:
+            break
+    if a.sum() == 0 or b.sum() == 0:
+        return np.array([]), 0, 0
+    z = pair_damping(omega[a][:, None], theta[a][:, None], omega[b][None, :], theta[b][None, :], omega_r)
+    return z.ravel(), int(a.sum()), int(b.sum())

@@ -79,7 +79,10 @@ covariance of the joint refinement (step 3), ``s^2 (J^T J)^-1`` with ``s^2`` its
 and the Student-t quantile on its residual degrees of freedom; so they widen with the noise, with
 a poor circle and with few lines across the peak. The damping interval spans both the pairwise
 mean and the least-squares ``zeta``, each widened by that half-width (their disagreement is the
-model-form term). Measured coverage: ``tests/test_close_modes.py``.
+model-form term). Where the misfit is systematic (the close-mode trigger) the curve is distorted
+(leakage, a nonlinear joint) in a way no noise covariance sees: the half-power bandwidth is then
+taken as known to `LEAKAGE_LINES` lines only (`ModalFit.damping_model_form`). Measured coverage:
+``tests/test_close_modes.py``.
 """
 
 from __future__ import annotations
@@ -90,7 +93,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as t_dist
 
-from workbench.extraction.circle_geometry import geometric, pair_damping, taubin
+from workbench.extraction.circle_geometry import MIN_SIDE_POINTS, geometric, pair_damping, pairs, taubin
 from workbench.extraction.multimode import inverse_normal, noise_level, second_mode
 
 __all__ = [
@@ -102,6 +105,7 @@ __all__ = [
     "CLOSE_EXCESS",
     "CLOSE_FLOOR",
     "CLOSE_BANDWIDTHS",
+    "LEAKAGE_LINES",
     "MIN_SIDE_POINTS",
     "MIN_BAND_POINTS",
     "ModalFit",
@@ -119,9 +123,8 @@ CLOSE_CORRELATION = 3.0  # lag-1 correlation of the misfit above this / sqrt(n):
 CLOSE_EXCESS = 2.0       # misfit RMS above this many noise levels: not noise
 CLOSE_FLOOR = 5e-4       # systematic misfit / radius below this is not evidence of a second mode
 CLOSE_BANDWIDTHS = 3.0   # two modes closer than this many half-power bandwidths are "close"
-MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
+LEAKAGE_LINES = 2.0      # a distorted curve's half-power bandwidth is known to +- this many lines
 MIN_BAND_POINTS = 6      # fewer points in a band is an error
-PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
 SENSE_RETRY = 0.3        # rad RMS angle misfit above which the anticlockwise sweep is tried too
 WEIGHT_FLOOR = 1e-4      # circle-error floor in the combination weights
 
@@ -149,6 +152,9 @@ class ModalFit:
     flags : subset of ``("close_mode", "weak", "poor_circle", "few_points", "edge_of_band")``.
     frequency_ci95_hz : (low, high) 95 % interval of the natural frequency, Hz (`_intervals`).
     damping_ci95 : (low, high) 95 % interval of the damping ratio (`_intervals`).
+    damping_model_form : the part of ``damping_ci95`` common to every curve of the test (damping
+        ratio, absolute half-width): `LEAKAGE_LINES` lines of half-power bandwidth when the misfit
+        is systematic, else 0.
     """
 
     frequency_hz: float
@@ -166,6 +172,7 @@ class ModalFit:
     flags: tuple[str, ...] = ()
     frequency_ci95_hz: tuple[float, float] = (float("nan"), float("nan"))
     damping_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    damping_model_form: float = 0.0
 
     def __post_init__(self) -> None:
         unknown = set(self.flags) - set(FLAGS)
@@ -285,22 +292,6 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
     return float(best.x[0]), float(best.x[1] * scale), zeta, best_sense
 
 
-def _pairs(omega, psi, omega_r, sense):
-    """Pairwise damping estimates from points within the half-power region, widened if needed."""
-    above = (omega > omega_r) & (sense * psi < 0.0)   # above resonance the angle runs on
-    below = (omega < omega_r) & (sense * psi > 0.0)
-    theta = np.abs(psi)
-    for limit in np.radians(PAIR_ANGLES_DEG):
-        a = above & (theta <= limit)
-        b = below & (theta <= limit)
-        if a.sum() >= MIN_SIDE_POINTS and b.sum() >= MIN_SIDE_POINTS:
-            break
-    if a.sum() == 0 or b.sum() == 0:
-        return np.array([]), 0, 0
-    z = pair_damping(omega[a][:, None], theta[a][:, None], omega[b][None, :], theta[b][None, :], omega_r)
-    return z.ravel(), int(a.sum()), int(b.sum())
-
-
 def _trend_basis(omega: np.ndarray, omega_ref: float) -> np.ndarray:
     """Mobility residual shapes ``i w``, ``-i / w``, ``i w^3 / w_ref^2`` (receptance ``U``,
     ``-L / w^2``, ``U_2 w^2``), shape (n, 3).
@@ -347,22 +338,26 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
             (np.sqrt(max(cov[0, 0], 0.0)) * w0, np.sqrt(max(cov[1, 1], 0.0)), dof))
 
 
-def _intervals(f_r: float, zeta: float, zeta_sweep: float,
-               spread: tuple[float, float, int]) -> tuple[tuple[float, float], tuple[float, float]]:
+def _intervals(f_r: float, zeta: float, zeta_sweep: float, spread: tuple[float, float, int],
+               model_form: float) -> tuple[tuple[float, float], tuple[float, float]]:
     """95 % intervals of frequency (Hz) and damping from the joint refinement's covariance
     (``spread = (sd omega_r rad/s, sd log zeta, dof)``), Student-t on its degrees of freedom.
 
     The damping interval spans both estimators, the reported pairwise mean ``zeta`` and the
     least-squares ``zeta_sweep``, each widened by the least-squares half-width (in log): their
-    disagreement is the model-form term (the pairwise mean is the noisier, and differs from the
-    least-squares value when the circle is not one viscous mode's).
+    disagreement is a model-form term (the pairwise mean is the noisier, and differs from the
+    least-squares value when the circle is not one viscous mode's). ``model_form`` (absolute,
+    ``ModalFit.damping_model_form``) is added in quadrature to each side.
     """
     sd_omega, sd_log, dof = spread
     t = float(t_dist.ppf(0.975, dof))
     half_f = t * sd_omega / (2.0 * np.pi)
-    half_log = min(t * sd_log, 50.0)
-    return ((float(f_r - half_f), float(f_r + half_f)),
-            (float(min(zeta, zeta_sweep) * np.exp(-half_log)), float(max(zeta, zeta_sweep) * np.exp(half_log))))
+    low = np.log(zeta / min(zeta, zeta_sweep)) + t * sd_log
+    high = np.log(max(zeta, zeta_sweep) / zeta) + t * sd_log
+    ratio = model_form / zeta
+    low = min(float(np.hypot(low, -np.log(1.0 - min(ratio, 0.99)))), 50.0)
+    high = min(float(np.hypot(high, np.log(1.0 + ratio))), 50.0)
+    return (float(f_r - half_f), float(f_r + half_f)), (float(zeta * np.exp(-low)), float(zeta * np.exp(high)))
 
 
 def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "accelerance") -> ModalFit:
@@ -426,7 +421,7 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     y = data - trend
     phi = np.angle(y - centre)
     psi = _wrap(phi - phi0)
-    estimates, n_above, n_below = _pairs(omega, psi, omega_r, sense)
+    estimates, n_above, n_below = pairs(omega, psi, omega_r, sense)
     zeta = float(np.mean(estimates)) if estimates.size else zeta_sweep
     zeta = zeta if np.isfinite(zeta) and zeta > 0 else zeta_sweep
     diameter = 2.0 * radius * np.exp(1j * phi0)
@@ -464,7 +459,12 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     if not (lo + half_width <= f_r <= hi - half_width):
         flags.append("edge_of_band")
 
-    f_ci, z_ci = _intervals(f_r, zeta, zeta_sweep, spread)
+    triggered = bool(systematic and misfit_rms > CLOSE_FLOOR * radius and not weak)
+    # a systematic misfit is a distortion (or a second mode): a finite record's window smears the
+    # peak over its main lobe (+-1 line rectangular, +-2 Hanning), so the half-power bandwidth
+    # 2 zeta f_r is known to LEAKAGE_LINES line spacings only
+    model_form = LEAKAGE_LINES * float(np.median(np.diff(omega))) / (2.0 * omega_r) if triggered else 0.0
+    f_ci, z_ci = _intervals(f_r, zeta, zeta_sweep, spread, model_form)
     fit = ModalFit(
         frequency_hz=float(f_r),
         damping_ratio=float(zeta),
@@ -481,6 +481,6 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
         flags=tuple(flags),
         frequency_ci95_hz=f_ci,
         damping_ci95=z_ci,
+        damping_model_form=model_form,
     )
-    # the trigger of the second-mode test: a systematic misfit beyond CLOSE_FLOOR radii
-    return fit, bool(systematic and misfit_rms > CLOSE_FLOOR * radius and not weak)
+    return fit, triggered  # the trigger of the second-mode test: systematic, beyond CLOSE_FLOOR radii

@@ -319,7 +319,8 @@ def combine(fits) -> ModeEstimate:
     (two close modes are a property of the structure, not of a sensor; a fit that failed for
     other reasons as well is no evidence of them).
 
-    95 % intervals (`_combined_interval`): the per-curve intervals combined as independent
+    95 % intervals (`_combined_interval`, `_combined_damping`): the per-curve intervals (damping:
+    their statistical part, the model-form part added back in the end) combined as independent
     (``sqrt(sum w^2 h^2)``, ``h`` each side's half-width; damping in log), times the Birge ratio
     ``sqrt(chi^2 / (n - 1))`` when above 1 (``chi^2`` of the curves' estimates about the mean, in
     their own standard deviations ``h / 1.96``): curves that scatter more than their intervals say
@@ -342,10 +343,8 @@ def combine(fits) -> ModeEstimate:
     flags = {flag for x, u in zip(fits, use) if u for flag in x.flags}
     if any(x.flags == ("close_mode",) for x in fits):  # a clean fit but for its neighbour
         flags.add("close_mode")
-    f_ci = np.array([x.frequency_ci95_hz for x in fits])
-    z_ci = np.log(np.array([x.damping_ci95 for x in fits]))
-    f_lo, f_hi = _combined_interval(w, fr, f_ci)
-    z_lo, z_hi = np.minimum(_combined_interval(w, np.log(ze), z_ci), 50.0)
+    f_lo, f_hi = _combined_interval(w, fr, np.array([x.frequency_ci95_hz for x in fits]))
+    z_lo, z_hi = _combined_damping(w, fits)
     return ModeEstimate(
         frequency_hz=f_mean, damping_ratio=z_mean,
         frequency_scatter=float(np.sqrt(w @ (fr - f_mean) ** 2)),
@@ -354,6 +353,20 @@ def combine(fits) -> ModeEstimate:
         flags=tuple(flag for flag in FLAGS if flag in flags), fits=fits,
         frequency_ci95_hz=(f_mean - f_lo, f_mean + f_hi),
         damping_ci95=(z_mean * float(np.exp(-z_lo)), z_mean * float(np.exp(z_hi))))
+
+
+def _combined_damping(w: np.ndarray, fits: tuple[ModalFit, ...]) -> tuple[float, float]:
+    """Half-widths in log (below, above) of the combined damping (`combine`): the curves' statistical
+    parts combined by `_combined_interval`, their common model-form part
+    (`ModalFit.damping_model_form`) averaged, not reduced, then both in quadrature.
+    """
+    ze = np.array([x.damping_ratio for x in fits])
+    ci = np.log(np.array([x.damping_ci95 for x in fits]) / ze[:, None]) * [-1.0, 1.0]
+    ratio = np.array([x.damping_model_form for x in fits]) / ze
+    common = np.column_stack([-np.log(1.0 - np.minimum(ratio, 0.99)), np.log(1.0 + ratio)])
+    own = np.sqrt(np.maximum(ci**2 - common**2, 0.0))
+    low, high = _combined_interval(w, np.log(ze), np.column_stack([np.log(ze) - own[:, 0], np.log(ze) + own[:, 1]]))
+    return min(float(np.hypot(low, w @ common[:, 0])), 50.0), min(float(np.hypot(high, w @ common[:, 1])), 50.0)
 
 
 def _combined_interval(w: np.ndarray, x: np.ndarray, ci: np.ndarray) -> tuple[float, float]:
