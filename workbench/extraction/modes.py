@@ -446,8 +446,9 @@ def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damp
     -------
     dict with ``snr_db`` (n_snr,), ``seeds``, ``natural_hz`` and ``damping_ratios`` (n_modes,),
     ``frequency_median``, ``frequency_p90``, ``damping_median``, ``damping_p90`` (n_snr, n_modes):
-    median and 90th percentile of ``|estimate / truth - 1|`` over the seeds and curves, and
-    ``ok_fraction`` (n_snr, n_modes), the share of fits without flags.
+    median and 90th percentile of ``|estimate / truth - 1|`` over the seeds and curves,
+    ``ok_fraction`` (n_snr, n_modes), the share of fits without flags, and ``frequency_coverage``,
+    ``damping_coverage`` (n_snr, n_modes), the share of fits whose 95 % interval holds the truth.
     """
     f = np.arange(0.0, f_max + resolution_hz / 2, resolution_hz)
     fr, zr = np.asarray(natural_hz, float), np.asarray(damping_ratios, float)
@@ -456,11 +457,13 @@ def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damp
     snr = np.asarray(snr_db_values, float)
     shape = (snr.size, fr.size)
     out = {k: np.zeros(shape) for k in ("frequency_median", "frequency_p90", "damping_median",
-                                        "damping_p90", "ok_fraction")}
+                                        "damping_p90", "ok_fraction", "frequency_coverage",
+                                        "damping_coverage")}
     for i, level in enumerate(snr):
         ef: list[list[float]] = [[] for _ in fr]
         ez: list[list[float]] = [[] for _ in fr]
         ok: list[list[bool]] = [[] for _ in fr]
+        covered: list[list[tuple[bool, bool]]] = [[] for _ in fr]
         for seed in seeds:
             noisy = add_noise(clean, level, np.random.default_rng(seed))
             for r in range(fr.size):
@@ -469,8 +472,11 @@ def error_vs_snr(snr_db_values, seeds, *, natural_hz=(100.0, 250.0, 600.0), damp
                     ef[r].append(abs(fit.frequency_hz / fr[r] - 1.0))
                     ez[r].append(abs(fit.damping_ratio / zr[r] - 1.0))
                     ok[r].append(fit.ok)
+                    covered[r].append((fit.frequency_ci95_hz[0] <= fr[r] <= fit.frequency_ci95_hz[1],
+                                       fit.damping_ci95[0] <= zr[r] <= fit.damping_ci95[1]))
         for r in range(fr.size):
             out["frequency_median"][i, r], out["frequency_p90"][i, r] = np.percentile(ef[r], [50, 90])
             out["damping_median"][i, r], out["damping_p90"][i, r] = np.percentile(ez[r], [50, 90])
             out["ok_fraction"][i, r] = np.mean(ok[r])
+            out["frequency_coverage"][i, r], out["damping_coverage"][i, r] = np.mean(covered[r], axis=0)
     return {"snr_db": snr, "seeds": tuple(seeds), "natural_hz": fr, "damping_ratios": zr, **out}
