@@ -148,7 +148,7 @@ def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]
         own = next((c for c in ranking if c["effect"] == effect and c["where"] == v.get("where")), None)
         lines.append(("shrinkage", f"{100 * v['shrinkage']:.1f} % of the nominal model's held-out error removed"))
         if own is not None and own["heldout_freq_rms_rel_error"] is not None and effect != JOINT_DAMPING.name:
-            lines.append(("unexplained", _share_text(own["heldout_freq_rms_rel_error"], base)))
+            lines.append(("left unexplained", _share_text(own["heldout_freq_rms_rel_error"], base)))
     elif effect == UNEXPLAINED:
         lines.append(("shrinkage", "none accepted: no candidate met the verdict's rules, so the verdict claims no "
                       "shrinkage (the record's 0)"))
