@@ -316,19 +316,7 @@ def _parser() -> argparse.ArgumentParser:
 
     p = command("report", "a self-contained HTML identification report of a campaign (index.html, tables as CSV)",
                 _report, ("index.html", *declared_files("report")))
-    p.add_argument("campaign", help="campaign directory (FRFs, modes.csv or moments.csv)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
-    p.add_argument("--samples", type=_positive_int, default=1000,
-                   help="Monte Carlo samples of the Figure 11 reference and of the FRF bands (default 1000)")
-    p.add_argument("--steps", type=_positive_int, default=3000,
-                   help="emcee steps kept per walker (default 3000; burn-in a quarter of it, at most 500)")
-    p.add_argument("--no-bayes", action="store_true", help="skip the Bayesian identification")
-    p.add_argument("--joints-from", action="append", metavar="CAMPAIGN",
-                   help="section 5: identify joint groups on this (one-bolt) campaign and predict CAMPAIGN with "
-                        "them; repeat for each group")
-    p.add_argument("--workers", type=_positive_int, default=1, help="processes for circle fits and Monte Carlo")
-    p.add_argument("--bands", help="circle-fit the campaign's FRFs with these mode bands, 'lo:hi,lo:hi,...' in Hz "
-                                   "(also when it has a modes.csv, which is used as it is otherwise)")
+    _report_options(p)
 
     p = sub.add_parser("demo", help="the main job on the bundled campaigns: identify, propagate, predict, report")
     p.add_argument("--out", default=DEMO_OUT,
@@ -356,6 +344,23 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
     p.set_defaults(run=_validate_diagnosis, writes=("summary.json", "cases.csv"))
     return parser
+
+
+def _report_options(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``workbench report``."""
+    p.add_argument("campaign", help="campaign directory (FRFs, modes.csv or moments.csv)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random step (default 0)")
+    p.add_argument("--samples", type=_positive_int, default=1000,
+                   help="Monte Carlo samples of the Figure 11 reference and of the FRF bands (default 1000)")
+    p.add_argument("--steps", type=_positive_int, default=3000,
+                   help="emcee steps kept per walker (default 3000; burn-in a quarter of it, at most 500)")
+    p.add_argument("--no-bayes", action="store_true", help="skip the Bayesian identification")
+    p.add_argument("--joints-from", action="append", metavar="CAMPAIGN",
+                   help="section 5: identify joint groups on this (one-bolt) campaign and predict CAMPAIGN with "
+                        "them; repeat for each group")
+    p.add_argument("--workers", type=_positive_int, default=1, help="processes for circle fits and Monte Carlo")
+    p.add_argument("--bands", help="circle-fit the campaign's FRFs with these mode bands, 'lo:hi,lo:hi,...' in Hz "
+                                   "(also when it has a modes.csv, which is used as it is otherwise)")
 
 
 def _work_options(p: argparse.ArgumentParser) -> None:
