@@ -71,7 +71,7 @@ def load_for_report(path: str | Path, bands: Sequence[tuple[float, float]] | Non
     Returns
     -------
     (campaign, extraction or None, note)
-        ``note`` says why there is no extraction when there is none (empty otherwise).
+        ``note`` says why a campaign with FRFs has no extraction (its modes.csv is used); empty otherwise.
 
     Raises
     ------
@@ -81,7 +81,7 @@ def load_for_report(path: str | Path, bands: Sequence[tuple[float, float]] | Non
     campaign = load_campaign(path)
     if bands is not None and campaign.frf is None:
         raise ValueError(f"{path}: --bands: the campaign has no FRFs to circle-fit")
-    if campaign.modes is not None and bands is None:
+    if campaign.modes is not None and bands is None and campaign.frf is not None:
         return campaign, None, (f"{path}/modes.csv: the campaign's extracted modes are identified as they are; "
                                 "the circle fit is not redone (pass --bands to redo it), so its FRFs, fits and "
                                 "the FRF band are not shown.")
