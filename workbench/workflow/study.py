@@ -239,8 +239,8 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     start = time.perf_counter()
     fit = moment_matching(model, data, seed=seed)
     sources = joint_sources(fit, campaign_label(campaign))
-    steps.add("moment matching", start, ", ".join(f"{g}: E = {s.youngs_modulus_pa / 1e9:.3g} GPa, CoV = {s.cov:.3g}"
-                                                  for g, s in sources.items()), fit.seed)
+    steps.add("moment matching", start, ", ".join(f"{g}: E = {s.youngs_modulus_pa / 1e9:.3g} GPa, "
+                                                  f"CoV = {100 * s.cov:.3g} %" for g, s in sources.items()), fit.seed)
 
     posterior, bayes_note = None, _bayes_refusal(campaign, data, bayes)
     if not bayes_note:
