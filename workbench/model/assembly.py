@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from workbench.model import elements
-from workbench.model.frame import DOF_NAMES, Frame, locate_point, member_length
+from workbench.model.frame import DOF_NAMES, Frame, member_length, points_on_member
 from workbench.model.pattern import JointPattern
 
 __all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "element_energies", "joint_energies",
@@ -156,11 +156,8 @@ def mesh_frame(frame: Frame) -> Mesh:
         x0 = np.array(frame.points[member.start])
         direction = (np.array(frame.points[member.end]) - x0) / length
         # (station along the member, node or None for a new node)
-        stations: list[tuple[float, int | None]] = []
-        for name, xy in frame.points.items():
-            s = locate_point(frame.points, member, xy)
-            if s is not None:
-                stations.append((s, point_node[name]))
+        stations: list[tuple[float, int | None]] = [
+            (s, point_node[name]) for name, s in points_on_member(frame.points, member).items()]
         zones = [(ji, j) for ji, j in enumerate(frame.joints) if j.member == member.name]
         for _, joint in zones:
             stations.extend((s, None) for s in joint.span)

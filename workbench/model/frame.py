@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 __all__ = [
     "DOF_NAMES",
     "BEAM_THEORIES",
@@ -32,6 +34,7 @@ __all__ = [
     "Frame",
     "member_length",
     "locate_point",
+    "points_on_member",
 ]
 
 DOF_NAMES = ("ux", "uy", "rz")
@@ -200,13 +203,35 @@ def locate_point(
     points: dict[str, tuple[float, float]], member: Member, xy: tuple[float, float]
 ) -> float | None:
     """Distance in m along `member` from its start to `xy`, or None if `xy` is not on it."""
-    (x0, y0), (x1, y1) = points[member.start], points[member.end]
-    dx, dy = x1 - x0, y1 - y0
-    length = math.hypot(dx, dy)
-    scale = max(1.0, max(abs(c) for p in points.values() for c in p))
-    tol = _ON_MEMBER_TOLERANCE * scale
-    s = ((xy[0] - x0) * dx + (xy[1] - y0) * dy) / length
-    off = abs((xy[0] - x0) * dy - (xy[1] - y0) * dx) / length
-    if off > tol or s < -tol or s > length + tol:
-        return None
-    return min(max(s, 0.0), length)
+    start, end = points[member.start], points[member.end]
+    s = _along(np.array([xy], float), np.array(start, float), np.array(end, float), _tolerance(points))[0]
+    return None if np.isnan(s) else float(s)
+
+
+def points_on_member(points: dict[str, tuple[float, float]], member: Member) -> dict[str, float]:
+    """Every point lying on `member`: name -> distance in m from its start (`locate_point` for all at once).
+
+    One pass over the points per member: meshing and checking a frame of thousands of points stays linear
+    in the points per member (point by point, each with its own tolerance scan, it was quadratic).
+    """
+    names = list(points)
+    xy = np.array([points[n] for n in names], float).reshape(-1, 2)
+    s = _along(xy, np.array(points[member.start], float), np.array(points[member.end], float), _tolerance(points))
+    return {name: float(v) for name, v in zip(names, s) if not np.isnan(v)}
+
+
+def _tolerance(points: dict[str, tuple[float, float]]) -> float:
+    """How far off a member a point may lie, m: relative to the frame's largest coordinate."""
+    coordinates = np.abs(np.array(list(points.values()), float))
+    return _ON_MEMBER_TOLERANCE * max(1.0, float(coordinates.max()) if coordinates.size else 1.0)
+
+
+def _along(xy: np.ndarray, start: np.ndarray, end: np.ndarray, tol: float) -> np.ndarray:
+    """(n,) distance of each point of ``xy`` (n, 2) along the segment from its start, m; NaN when off it."""
+    d = end - start
+    length = float(math.hypot(d[0], d[1]))
+    rel = xy - start
+    s = (rel[:, 0] * d[0] + rel[:, 1] * d[1]) / length
+    off = np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0]) / length
+    inside = (off <= tol) & (s >= -tol) & (s <= length + tol)
+    return np.where(inside, np.clip(s, 0.0, length), np.nan)

@@ -30,8 +30,8 @@ from workbench.model.frame import (
     Section,
     Sensor,
     Support,
-    locate_point,
     member_length,
+    points_on_member,
 )
 from workbench.model.sanity import check_frame
 
@@ -245,8 +245,9 @@ def _members(top: _Reader, points: Points, materials: dict[str, Material],
 
 
 def _check_points_on_members(pts: _Reader, points: Points, members: tuple[Member, ...]) -> None:
+    on_some = {name for m in members for name in points_on_member(points, m)}
     for pname, xy in points.items():
-        if not any(locate_point(points, m, xy) is not None for m in members):
+        if pname not in on_some:
             pts.fail(pname, f"point {pname!r} at {list(xy)} lies on no member")
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import warnings
 
-from workbench.model.frame import DOF_NAMES, Frame, FrameFileError, locate_point, member_length
+from workbench.model.frame import DOF_NAMES, Frame, FrameFileError, member_length, points_on_member
 
 __all__ = ["UnitsWarning", "UNIT_RANGES", "MAX_ELEMENTS_PER_MEMBER", "check_frame", "units_warnings"]
 
@@ -58,8 +58,7 @@ def _check_one_piece(frame: Frame) -> None:
 
     One free-free piece (no supports) is a valid test set-up; two cantilevers clamped apart are too.
     """
-    on_member = {m.name: {p for p, xy in frame.points.items() if locate_point(frame.points, m, xy) is not None}
-                 for m in frame.members}
+    on_member = {m.name: set(points_on_member(frame.points, m)) for m in frame.members}
     pieces: list[set[str]] = []
     for m in frame.members:
         if any(m.name in piece for piece in pieces):

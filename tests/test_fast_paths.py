@@ -1,0 +1,40 @@
+"""Fast paths that large models need, against the plain definitions they replace.
+
+- `points_on_member` (all points at once) against `locate_point` (one point) on a generated frame;
+- the joint pattern built in one pass against the sum of the joints' matrices;
+- `_x_minus_log1p` (a short series below 0.01) against 50-digit decimal arithmetic.
+"""
+
+from __future__ import annotations
+
+from decimal import Decimal, getcontext
+
+import numpy as np
+import scipy.sparse as sp
+
+from workbench.model.assembly import assemble
+from workbench.model.frame import locate_point, points_on_member
+from workbench.model.generate import multibay_frame
+from workbench.uq.smr import _x_minus_log1p
+
+
+def test_points_on_member_is_locate_point_for_every_point():
+    frame = multibay_frame(3, 2, element_length=0.05)
+    for member in frame.members:
+        one_by_one = {name: locate_point(frame.points, member, xy) for name, xy in frame.points.items()}
+        assert points_on_member(frame.points, member) == {k: v for k, v in one_by_one.items() if v is not None}
+
+
+def test_the_joint_pattern_gives_the_sum_of_the_joint_matrices():
+    model = assemble(multibay_frame(2, 2, element_length=0.05))
+    gamma = np.linspace(0.5, 1.5, len(model.joint_names))
+    expected = model.stiffness_rest + sum((g * k for g, k in zip(gamma, model.stiffness_joints)),
+                                          sp.csr_matrix(model.stiffness_rest.shape))
+    assert abs(model.stiffness(gamma) - expected).max() <= 1e-12 * abs(expected).max()
+
+
+def test_x_minus_log1p_to_the_last_digits():
+    getcontext().prec = 50
+    x = np.concatenate([np.logspace(-12, 2, 300), -np.logspace(-12, np.log10(0.9), 150)])
+    exact = np.array([float(Decimal(float(v)) - (Decimal(1) + Decimal(float(v))).ln()) for v in x])
+    assert np.max(np.abs(_x_minus_log1p(x) / exact - 1.0)) < 5e-14
