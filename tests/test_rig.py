@@ -84,7 +84,7 @@ def test_frequencies_rise_with_preload_toward_a_limit(one_bolt):
     assert np.all(step > 0), "every mode rises with every tightening step"
     assert np.all(np.diff(step, axis=0) < 0), "with decreasing increments"
     assert np.all(step[-1] / (f[-1] - f[0]) < 0.01), "and saturates: the last step is under 1 % of the rise"
-    law = JointLaw.calibrated(24e9, 0.065)
+    law = JointLaw.calibrated(24e9, 0.088)
     assert law.modulus(1e5) == pytest.approx(law.y_stuck_pa * (1 - law.s0 * np.exp(-1e5 / law.ps_n)))
 
 
@@ -108,15 +108,25 @@ def test_high_amplitude_lowers_frequencies_by_less_than_one_percent(one_bolt, fo
 
 
 @pytest.mark.parametrize("seed", [3001, 11, 12])
-def test_one_bolt_sweep_cov_is_of_the_order_of_table3(one_bolt, seed):
-    # seed 3001 is the bundled campaign's
+def test_one_bolt_sweep_has_table4s_modulus_cov_and_first_order_frequency_covs(one_bolt, seed):
+    # seed 3001 is the bundled campaign's. The law is calibrated on Table 4's CoV (0.09 with the
+    # test scatter); each mode's frequency CoV then follows from its share of strain energy in the
+    # joint, to first order (SMR1, eq. 5: d log f / d log Y = share / 2), a closed form the rig does
+    # not use (it solves every test exactly).
     settings = replace(RigSettings(), f_max_hz=60.0, df_hz=1.0, snr_db=None)
     _, truth = sweep(one_bolt, [round(p) for p in sweep_preloads()], settings, seed=seed)
-    f = frequencies(truth)[:, :9]
-    cov = f.std(axis=0, ddof=1) / f.mean(axis=0)
-    assert np.all((cov > 1e-4) & (cov < 5e-3)), cov
     moduli = np.array([t["moduli_pa"]["A"] for t in truth["tests"]])
     assert moduli.mean() == pytest.approx(24e9, rel=0.03)
+    # nine tests: the sample CoV of a 0.09 law has a standard error of about 0.09 / 4
+    assert moduli.std(ddof=1) / moduli.mean() == pytest.approx(0.09, abs=0.02)
+    f = frequencies(truth)[:, :9]
+    cov = f.std(axis=0, ddof=1) / f.mean(axis=0)
+    share = np.mean([t["joint_energy_share"]["A"][:9] for t in truth["tests"]], axis=0)
+    log_y = np.log(moduli)
+    first_order = 0.5 * share * log_y.std(ddof=1)
+    np.testing.assert_allclose(cov, first_order, rtol=0.15)
+    # of the order of the paper's Table 3 (1.3e-4 to 4.7e-3 over its nine modes)
+    assert np.all((cov > 1e-4) & (cov < 2 * 4.7e-3)), cov
 
 
 EFFECT_CASES = {

@@ -176,11 +176,15 @@ class LockedStress:
 def default_laws() -> dict[str, dict[str, float]]:
     """Calibration targets per joint group: mean modulus from the frame file (None) and sweep CoV.
 
-    Vertical: CoV 0.072 of the law (with the 3 % test scatter, about 0.078 in all), a little under
-    Table 4's 0.09 so that the one-bolt sweep's frequency CoVs stay within Table 3's range
-    (1e-4 to 5e-3; our mode 3 puts 11 % of its strain energy in the joint). Horizontal: 0.22.
+    The paper's Table 4: vertical 0.09, horizontal 0.22, the CoVs identified over its tests. Ours
+    are the law's over the tightening sweep, to which each test adds `RigSettings.scatter_cov`
+    (0.02): 0.088 gives 0.09 in all (sqrt(0.088^2 + 0.02^2)); the one-bolt sweep then has a
+    modulus CoV of 0.09-0.10 (tests/test_rig.py). Its frequency CoVs are of the order of Table
+    3's (1e-4 to 5e-3): up to 5.6e-3 on our mode 3, which puts 11 % of its strain energy in the
+    joint (our geometry is not the paper's: its Figure 1 dimensions are not available).
+    Horizontal: 0.22, where the 0.02 scatter changes nothing that matters.
     """
-    return {"vertical": {"cov": 0.065}, "horizontal": {"cov": 0.22}}
+    return {"vertical": {"cov": 0.088}, "horizontal": {"cov": 0.22}}
 
 
 @dataclass(frozen=True)
