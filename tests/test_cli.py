@@ -248,9 +248,13 @@ def test_demo_runs_the_main_job_from_the_repository_root(tmp_path):
     done = subprocess.run([sys.executable, "-m", "workbench.cli", "demo", "--out", str(out), "--samples", "100",
                            "--steps", "400"], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    assert [p.name for p in out.iterdir()] == ["index.html"]
+    names = sorted(p.name for p in out.iterdir())
+    tables = [n for n in names if n != "index.html"]
+    assert "index.html" in names and tables and all(n.startswith("tables_") and n.endswith(".csv") for n in tables)
     assert done.stdout.strip().endswith(" s") and "demo report written to" in done.stdout
     text = (out / "index.html").read_text(encoding="utf-8")
+    # the page links every table it wrote beside itself, and nothing else sits there
+    assert all(f'href="{n}"' in text for n in tables)
     for name in ("one_bolt_vertical_sweep", "one_bolt_horizontal_sweep", "two_bolt_table5", "four_bolt_table6"):
         assert name in text
     assert "SYNTHETIC - virtual test rig" in text and 'src="http' not in text

@@ -2,7 +2,9 @@
 
 - `points_on_member` (all points at once) against `locate_point` (one point) on a generated frame;
 - the joint pattern built in one pass against the sum of the joints' matrices;
-- `_x_minus_log1p` (a short series below 0.01) against 50-digit decimal arithmetic.
+- `_x_minus_log1p` (a short series below 0.01) against 50-digit decimal arithmetic;
+- the circle fit's written-out Jacobians against central differences of its residuals, at the start
+  and at the solution of every least-squares problem a noisy two-mode fit poses.
 """
 
 from __future__ import annotations
@@ -11,10 +13,13 @@ from decimal import Decimal, getcontext
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.optimize._numdiff import approx_derivative
 
+from workbench.extraction import circlefit
 from workbench.model.assembly import assemble
 from workbench.model.frame import locate_point, points_on_member
 from workbench.model.generate import multibay_frame
+from workbench.model.modal import Modes, add_noise, modal_frf
 from workbench.uq.smr import _x_minus_log1p
 
 
@@ -38,3 +43,27 @@ def test_x_minus_log1p_to_the_last_digits():
     x = np.concatenate([np.logspace(-12, 2, 300), -np.logspace(-12, np.log10(0.9), 150)])
     exact = np.array([float(Decimal(float(v)) - (Decimal(1) + Decimal(float(v))).ln()) for v in x])
     assert np.max(np.abs(_x_minus_log1p(x) / exact - 1.0)) < 5e-14
+
+
+def test_circle_fit_jacobians_are_the_derivatives_of_its_residuals(monkeypatch):
+    checked = []
+    plain = circlefit.least_squares
+
+    def checking(fun, x0, jac, **options):
+        sol = plain(fun, x0, jac=jac, **options)
+        for x in (np.asarray(x0, float), sol.x):
+            numeric = approx_derivative(fun, x, method="3-point")
+            assert np.allclose(jac(x), numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+        checked.append(len(x0))
+        return sol
+
+    monkeypatch.setattr(circlefit, "least_squares", checking)
+    f = np.linspace(80.0, 130.0, 400)
+    modes = Modes(eigenvalues=(2.0 * np.pi * np.array([100.0, 112.0])) ** 2, shapes=np.array([[1.0, 0.6],
+                                                                                               [0.4, -1.0]]))
+    clean = modal_frf(modes, f, np.array([0]), 0, np.array([0.01, 0.004]), "accelerance")
+    h = add_noise(clean, 40.0, np.random.default_rng(3))
+    for band in ((96.0, 104.0), (110.0, 114.0)):
+        fit = circlefit.circle_fit(f, h[0], band, "accelerance")
+        assert abs(fit.frequency_hz / np.mean(band) - 1.0) < 0.01
+    assert {3} < set(checked) and max(checked) > 6  # the sweep and the joint refinement with trend terms

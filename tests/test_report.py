@@ -22,7 +22,8 @@ from workbench.report.page import SECTION_TITLES, render_report
 from workbench.report.tables import csv_name, declared_files
 from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 from workbench.workflow.measured import load_and_extract
-from workbench.workflow.study import JointSource, Run, predict_campaign
+from workbench.workflow.runs import Run
+from workbench.workflow.study import JointSource, predict_campaign
 
 SMALL = RigSettings(f_max_hz=500.0)  # modes 1-5 of the one-bolt frames, 2001 lines
 

@@ -30,7 +30,7 @@ from workbench.report.diagnosis_page import diagnosis_files
 from workbench.report.page import report_files
 from workbench.rig.effects import Effect
 from workbench.rig.simulate import RigSettings, simulate_campaign
-from workbench.workflow.study import report_run
+from workbench.workflow.runs import report_run
 
 CHROMIUM = os.environ.get("WORKBENCH_CHROMIUM", "/usr/bin/chromium")
 # as benchmarks/screenshot_report.py: no GPU, no network side channels of the browser itself, so

@@ -207,7 +207,7 @@ def _write_report(run, out: OutputSet, start: float) -> str:
 
 def _report(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.workflow.report_inputs import parse_bands
-    from workbench.workflow.study import report_run
+    from workbench.workflow.runs import report_run
 
     start = time.perf_counter()
     run = report_run(args.campaign, joints_from=args.joints_from or (), seed=args.seed, samples=args.samples,
@@ -220,7 +220,7 @@ DEMO_OUT = "out/demo"  # untracked (.gitignore): the demo never rewrites a file 
 
 
 def _demo(args: argparse.Namespace, out: OutputSet) -> str:
-    from workbench.workflow.study import demo_run
+    from workbench.workflow.runs import demo_run
 
     start = time.perf_counter()
     run = demo_run(args.campaigns, seed=args.seed, samples=args.samples, bayes_steps=args.steps,

@@ -1,9 +1,11 @@
 """Modal extraction from many FRFs: mode bands, a circle fit per curve, quality-weighted combination.
 
 Builds on `workbench.extraction.circlefit` (one curve, one band): `find_mode_bands` finds the modes across
-sensors and tests (peak detection, with a user override), `fit_modes` fits every curve in every
-band, `combine` merges the curves of one mode with weights from their fit quality, and
-`error_vs_snr` measures the accuracy of the whole chain against synthetic FRFs.
+sensors and tests (peak detection, with a user override), `split_bands` lists a band twice where a
+two-pole fit (`workbench.extraction.multimode`) finds two modes under one peak, `fit_modes` fits
+every curve in every band (a band listed twice: both modes at once, poles common to the curves),
+`combine` merges the curves of one mode with weights from their fit quality, with a 95 % interval,
+and `error_vs_snr` measures the accuracy of the whole chain against synthetic FRFs.
 """
 
 from __future__ import annotations
@@ -189,15 +191,23 @@ def split_bands(frequency_hz: list, frfs: list, quantity: str, bands) -> list[tu
 
 
 def _holds_two(frequency_hz: list, frfs: list, quantity: str, band: tuple[float, float]) -> bool:
-    """True when at least half of the tests accept a second pole in ``band`` (`split_bands`)."""
-    votes = []
+    """True when at least half of the tests accept a second pole in ``band`` (`split_bands`); the
+    tests are asked in turn until the vote is decided (each is two least-squares pole fits).
+    """
+    voters = []
     for f, h in zip(frequency_hz, frfs):
         f, h = np.asarray(f, float), np.atleast_2d(h)
         inside = (f >= band[0]) & (f <= band[1])
-        if inside.sum() < MIN_BAND_POINTS or f[inside][0] <= 0.0:
-            continue
-        votes.append(second_mode(f, h, band, quantity, noise_level(h), _peak_start(f[inside], h[:, inside]))[2])
-    return bool(votes) and 2 * sum(votes) >= len(votes)
+        if inside.sum() >= MIN_BAND_POINTS and f[inside][0] > 0.0:
+            voters.append((f, h, inside))
+    needed = (len(voters) + 1) // 2   # ayes for 2 * ayes >= len(voters)
+    ayes = noes = 0
+    for f, h, inside in voters:
+        if ayes >= needed or noes > len(voters) - needed:
+            break
+        accepted = second_mode(f, h, band, quantity, noise_level(h), _peak_start(f[inside], h[:, inside]))[2]
+        ayes, noes = ayes + accepted, noes + (not accepted)
+    return bool(voters) and ayes >= needed
 
 
 def _peak_start(f: np.ndarray, h: np.ndarray) -> tuple[float, float]:

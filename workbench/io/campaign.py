@@ -426,7 +426,8 @@ def frf_set(campaign: Campaign, test_id: Any) -> FRFSet:
     if rows.empty:
         fail(campaign.path or campaign.name, f"frf: no rows for test_id {test_id!r}")
     check_flat_curves(rows, campaign.path or campaign.name)
-    order = [s.name for s in campaign.frame.sensors if s.name in set(rows["sensor"])]
+    present = set(rows["sensor"].unique())
+    order = [s.name for s in campaign.frame.sensors if s.name in present]
     curves = [rows[rows["sensor"] == s] for s in order]
     axis = curves[0]["frequency_hz"].to_numpy()
     for s, c in zip(order, curves):

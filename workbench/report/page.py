@@ -1,6 +1,6 @@
 """The identification report: one self-contained HTML page, read like a test-lab report.
 
-`render_report` turns a `workbench.workflow.study.Run` (campaign studies and section 5 predictions)
+`render_report` turns a `workbench.workflow.runs.Run` (campaign studies and section 5 predictions)
 into ``index.html``: figures embedded as base64 PNG (`workbench.report.plots`), CSS inline, no script and
 no external address, so that the page opens offline and prints. Plots come before tables. Synthetic
 campaigns carry a banner ("SYNTHETIC - virtual test rig") and are never called measured.
@@ -39,7 +39,8 @@ from workbench.report.shapes import shapes_section
 from workbench.report.summary import SUMMARY_CSS, summary_box
 from workbench.report.tables import Tables
 from workbench.workflow.measured import campaign_label, mode_windows, nyquist_data
-from workbench.workflow.study import Prediction, Run, Study
+from workbench.workflow.runs import Run
+from workbench.workflow.study import Prediction, Study
 
 __all__ = ["render_report", "report_files", "SECTION_TITLES", "CSS", "html_table", "html_figure", "plt", "save_figure",
            "moment_error_figure", "plot_moment_errors"]
@@ -409,7 +410,7 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
 
     Parameters
     ----------
-    run : studies and predictions (`workbench.workflow.study.report_run` or `demo_run`).
+    run : studies and predictions (`workbench.workflow.runs.report_run` or `demo_run`).
     total_wall_s : the whole command's wall time, s, shown in "what was done".
     """
     return report_files(run, total_wall_s)["index.html"]
@@ -421,7 +422,7 @@ def report_files(run: Run, total_wall_s: float | None = None) -> dict[str, str]:
 
     Parameters
     ----------
-    run : studies and predictions (`workbench.workflow.study.report_run` or `demo_run`).
+    run : studies and predictions (`workbench.workflow.runs.report_run` or `demo_run`).
     total_wall_s : the whole command's wall time, s, shown in "what was done".
     """
     tables = Tables()

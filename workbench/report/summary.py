@@ -12,7 +12,8 @@ import numpy as np
 
 from workbench.report.pieces import escape
 from workbench.report.tables import Tables
-from workbench.workflow.study import Run, Study
+from workbench.workflow.runs import Run
+from workbench.workflow.study import Study
 
 __all__ = ["joint_rows", "modes_line", "diagnosis_line", "summary_box", "SUMMARY_CSS"]
 

@@ -42,9 +42,9 @@ BATCH_BYTES = 48e6  # float32 intermediates of the batched synthesis
 BAND_METHODS = ("smr", "mc")
 BAND_SAMPLES = 10_000  # draws of the paper's SMR-based FRF envelope
 BAND_CHECKS = 200  # exact solves checking it
-BAND_QUIET_LINES = 800  # lines of a band away from its modes (its plots are about a thousand pixels wide)
+BAND_QUIET_LINES = 600  # lines of a band away from its modes (its plots are under a thousand pixels wide)
 PEAK_HALF_WIDTHS = 3.0  # the report's zoom windows reach this many half-power half-widths past the draws
-WINDOW_LINES = 200  # lines of a band around one mode (its zoom in the report is a few hundred pixels wide)
+WINDOW_LINES = 150  # lines of a band around one mode (its zoom in the report is about 200 pixels wide)
 
 
 @dataclass(frozen=True)

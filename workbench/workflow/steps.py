@@ -6,7 +6,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["Notify", "Step", "Steps"]
+__all__ = ["Notify", "Step", "Steps", "step_line", "tell"]
 
 Notify = Callable[[str], None] | None
 """Called with one line per finished step (the command line prints it), or None."""
@@ -20,6 +20,18 @@ class Step:
     wall_time_s: float
     detail: str = ""
     seed: int | None = None
+
+
+def step_line(prefix: str, step: Step) -> str:
+    """The line told of a finished step."""
+    return f"{prefix}{step.name}: {step.detail} ({step.wall_time_s:.1f} s)"
+
+
+def tell(notify: Notify, prefix: str, steps: tuple[Step, ...] | list[Step]) -> None:
+    """Tell ``notify`` the lines of steps that ran elsewhere (another process), in their order."""
+    for step in steps:
+        if notify is not None:
+            notify(step_line(prefix, step))
 
 
 class Steps:
@@ -37,5 +49,4 @@ class Steps:
             wall_time_s = time.perf_counter() - start
         step = Step(name, wall_time_s, detail, seed)
         self.items.append(step)
-        if self.notify is not None:
-            self.notify(f"{self.prefix}{name}: {detail} ({step.wall_time_s:.1f} s)")
+        tell(self.notify, self.prefix, [step])

@@ -13,7 +13,8 @@ group (vertical, horizontal; Table 4), applied to a multi-bolt frame
 (`workbench.model.joints.frame_with_joint_models`), whose frequency moments (adaptive SMR) and FRF
 band are set against that frame's own measured FRFs and circle-fit frequencies (Figures 14, 16).
 
-Each stage returns a frozen record that the report draws (`workbench.report.page`, `workbench.report.plots`).
+Whole runs (the report's, the demo's) are in `workbench.workflow.runs`. Each stage returns a
+frozen record that the report draws (`workbench.report.page`, `workbench.report.plots`).
 Random steps take the ``seed`` given and record it; ``notify`` receives one line per finished
 step (the command line prints it); ``progress`` (`workbench.progress`) follows the long steps (Monte
 Carlo, emcee, FRF band). This module imports neither pandas nor matplotlib: campaigns are loaded
@@ -23,9 +24,8 @@ through `workbench.io.campaign`, imported where they are loaded.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -57,22 +57,17 @@ from workbench.uq.stochastic import (
     monte_carlo,
     quadrature_reference,
 )
-from workbench.workflow.execution import mapper as task_mapper
 from workbench.workflow.measured import (
     Extraction,
-    Loaded,
     campaign_label,
     extract_campaign,
     frequency_axis,
-    load_campaigns,
     measured_modes,
 )
-from workbench.workflow.report_inputs import load_for_report
 from workbench.workflow.steps import Notify, Step, Steps
 
 __all__ = ["ACCURACY_METHODS", "Step", "Accuracy", "JointSource", "Study", "study_campaign", "joint_sources",
-           "Prediction", "predict_campaign", "Run", "identify_sources", "report_run", "demo_run", "DEMO_STUDIES",
-           "DEMO_BAYES", "DEMO_PREDICTIONS"]
+           "Prediction", "predict_campaign"]
 
 ACCURACY_METHODS = ("smr1", "smr2", "adaptive", "pert2")  # Figure 11's methods, and our adaptive one
 
@@ -352,128 +347,3 @@ def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, Joi
                     progress=progress)
     steps.add("predicted FRF band", start, band_detail(band), seed)
     return Prediction(campaign, extraction, dict(sources), frame, moments, band, comparison, tuple(steps.items))
-
-
-# ---------------------------------------------------------------------------- whole runs
-
-DEMO_STUDIES = ("one_bolt_vertical_sweep", "one_bolt_horizontal_sweep")  # one joint group each (Table 4)
-DEMO_BAYES = ("one_bolt_vertical_sweep",)  # emcee where the time budget allows (about 10 s)
-DEMO_PREDICTIONS = ("two_bolt_table5", "four_bolt_table6")  # section 5; table7's mode 9 scatters (campaigns/README)
-
-
-@dataclass(frozen=True)
-class Run:
-    """A whole report's content: campaign studies, section 5 predictions, and the run's settings.
-
-    ``steps`` are the run-level steps (loading and circle fits); each study and prediction keeps its own.
-    """
-
-    title: str
-    studies: tuple[Study, ...]
-    predictions: tuple[Prediction, ...]
-    steps: tuple[Step, ...]
-    seed: int
-    samples: int
-    bayes_steps: int
-    diagnosis: dict | None = None  # a diagnosis.json record, in the report's summary where one is part of the run
-
-
-def identify_sources(loaded: Mapping[str, tuple], seed: int = 0) -> dict[str, JointSource]:
-    """Moment matching on each loaded one-bolt campaign; group name -> `JointSource`.
-
-    Parameters
-    ----------
-    loaded : path -> ``(campaign, extraction or None)`` (`load_campaigns`).
-
-    Raises
-    ------
-    ValueError
-        Two campaigns identify the same joint group.
-    """
-    sources: dict[str, JointSource] = {}
-    for path, (campaign, extraction) in loaded.items():
-        data = (extraction.measured_modes(f"{path} (modes by circle fit of its FRFs)") if extraction is not None
-                else measured_modes(campaign, None, "identify from"))
-        fit = moment_matching(assemble(campaign.frame), data, seed=seed)
-        for group, source in joint_sources(fit, campaign_label(campaign)).items():
-            if group in sources:
-                raise ValueError(f"{path}: joint group {group!r} is already identified on {sources[group].campaign!r}")
-            sources[group] = source
-    return sources
-
-
-def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] = (), seed: int = 0,
-               samples: int = 1000, bayes: bool = True, bayes_steps: int = 3000, workers: int = 1,
-               bands: Sequence[tuple[float, float]] | None = None, progress: Progress | None = None,
-               notify: Notify = None) -> Run:
-    """`workbench report`: one campaign's study (modes.csv, else a circle fit with ``bands``, Hz:
-    `load_for_report`) and, with ``joints_from``, its section 5 prediction from their joint models.
-    """
-    start = time.perf_counter()
-    with task_mapper(workers, None, progress) as tasks:
-        campaign, extraction, note = load_for_report(campaign_path, bands, tasks)
-        loaded = load_campaigns([str(p) for p in joints_from], tasks, progress) if joints_from else {}
-        run_steps = [Step("load and circle-fit", time.perf_counter() - start, f"{1 + len(loaded)} campaign(s)")]
-        studied = replace(campaign, frf=None) if extraction is None and note else campaign  # modes.csv as it is
-        study = study_campaign(studied, extraction, seed=seed, samples=samples, bayes=bayes,
-                               bayes_steps=bayes_steps, mapper=tasks, progress=progress, notify=notify)
-    study = replace(study, extraction_note=note) if note else study
-    predictions: tuple[Prediction, ...] = ()
-    if joints_from:
-        if extraction is None:
-            raise ValueError(f"{campaign_path}: no circle fit of FRFs to set a prediction against"
-                             + (" (the campaign's modes.csv is used: pass --bands to circle-fit)" if note else ""))
-        t0 = time.perf_counter()
-        sources = identify_sources(loaded, seed)
-        run_steps.append(Step("joint models of the sources", time.perf_counter() - t0,
-                              ", ".join(f"{g} from {s.campaign}" for g, s in sources.items()), seed))
-        predictions = (predict_campaign(campaign, extraction, sources, seed=seed, samples=samples,
-                                        progress=progress, notify=notify),)
-    return Run(f"Identification report: {study.name}", (study,), predictions, tuple(run_steps), seed, samples,
-               bayes_steps)
-
-
-def _predict_loaded(loaded: Loaded, sources: Mapping[str, JointSource], seed: int, samples: int,
-                    progress: Progress | None, notify: Notify) -> Prediction:
-    campaign, extraction = loaded
-    if extraction is None:
-        raise ValueError(f"{campaign.path}: the campaign has no FRFs to set a prediction against")
-    return predict_campaign(campaign, extraction, sources, seed=seed, samples=samples, progress=progress,
-                            notify=notify)
-
-
-def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, bayes_steps: int = 2000,
-             workers: int = 2, progress: Progress | None = None, notify: Notify = None) -> Run:
-    """`workbench demo`: the paper's chain on the bundled campaigns (`DEMO_STUDIES`, `DEMO_BAYES`,
-    `DEMO_PREDICTIONS`): identify the vertical and horizontal joint models on the one-bolt sweeps,
-    then predict the two- and four-bolt frames with them (section 5).
-
-    Raises
-    ------
-    ValueError
-        A bundled campaign is missing from ``campaigns_dir``.
-    """
-    root = Path(campaigns_dir)
-    names = DEMO_STUDIES + DEMO_PREDICTIONS
-    missing = [n for n in names if not (root / n / "campaign.toml").is_file()]
-    if missing:
-        raise ValueError(f"{root}: the bundled campaigns are not there (missing {', '.join(missing)}); run from the "
-                         "repository root or pass --campaigns DIR")
-    if notify is not None:
-        notify(f"demo: circle fits of {', '.join(names)} from {root}/ ({workers} processes)")
-    start = time.perf_counter()
-    # the largest campaigns first, so that two processes finish together
-    with task_mapper(workers, None, progress) as tasks:
-        loaded = load_campaigns([root / n for n in DEMO_PREDICTIONS + DEMO_STUDIES], tasks, progress)
-        run_steps = [Step("load and circle-fit", time.perf_counter() - start,
-                          f"{len(names)} campaigns, {workers} processes")]
-        if notify is not None:
-            notify(f"loaded and circle-fitted {len(names)} campaigns ({run_steps[0].wall_time_s:.1f} s)")
-        studies = tuple(study_campaign(*loaded[str(root / n)], seed=seed, samples=samples, bayes=n in DEMO_BAYES,
-                                       bayes_steps=bayes_steps, mapper=tasks, progress=progress, notify=notify)
-                        for n in DEMO_STUDIES)
-    sources = {g: s for study in studies for g, s in study.joints.items()}
-    predictions = tuple(_predict_loaded(loaded[str(root / n)], sources, seed, samples, progress, notify)
-                        for n in DEMO_PREDICTIONS)
-    return Run("Bolted-joint variability: identification on one-bolt frames, prediction of multi-bolt frames",
-               studies, predictions, tuple(run_steps), seed, samples, bayes_steps)
