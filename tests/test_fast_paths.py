@@ -4,7 +4,9 @@
 - the joint pattern built in one pass against the sum of the joints' matrices;
 - `_x_minus_log1p` (a short series below 0.01) against 50-digit decimal arithmetic;
 - the circle fit's written-out Jacobians against central differences of its residuals, at the start
-  and at the solution of every least-squares problem a noisy two-mode fit poses.
+  and at the solution of every least-squares problem a noisy two-mode fit poses;
+- the two-pole fit's variable-projection Jacobian (Golub-Pereyra) against central differences, on
+  and off the solution, noise-free and noisy.
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from __future__ import annotations
 from decimal import Decimal, getcontext
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from scipy.optimize._numdiff import approx_derivative
 
-from workbench.extraction import circlefit
+from workbench.extraction import circlefit, multimode
 from workbench.model.assembly import assemble
 from workbench.model.frame import locate_point, points_on_member
 from workbench.model.generate import multibay_frame
@@ -67,3 +70,20 @@ def test_circle_fit_jacobians_are_the_derivatives_of_its_residuals(monkeypatch):
         fit = circlefit.circle_fit(f, h[0], band, "accelerance")
         assert abs(fit.frequency_hz / np.mean(band) - 1.0) < 0.01
     assert {3} < set(checked) and max(checked) > 6  # the sweep and the joint refinement with trend terms
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.01, 0.3])
+def test_the_pole_fit_jacobian_is_the_derivative_of_the_projected_residual(noise):
+    rng = np.random.default_rng(1)
+    omega = 2.0 * np.pi * np.linspace(90.0, 120.0, 300)
+    x = np.log([2.0 * np.pi * 100.0, 2.0 * np.pi * 104.0, 0.01, 0.008])
+    clean = multimode._basis(omega, x, 2) @ (rng.normal(size=(4, 3)) + 1j * rng.normal(size=(4, 3)))
+    data = clean + noise * np.abs(clean).mean() * (rng.normal(size=clean.shape) + 1j * rng.normal(size=clean.shape))
+
+    def residual(p):
+        r = multimode._solve(omega, data, p, 2)[1].ravel()
+        return np.concatenate([r.real, r.imag])
+
+    for p in (x, x + np.array([0.001, -0.002, 0.05, -0.03])):
+        numeric = approx_derivative(residual, p, method="3-point")
+        assert np.abs(multimode._projection_jacobian(omega, data, p, 2) - numeric).max() < 1e-4 * np.abs(numeric).max()

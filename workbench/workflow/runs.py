@@ -115,8 +115,8 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
         sources = identify_sources(loaded, seed)
         run_steps.append(Step("joint models of the sources", time.perf_counter() - t0,
                               ", ".join(f"{g} from {s.campaign}" for g, s in sources.items()), seed))
-        predictions = (predict_campaign(campaign, extraction, sources, seed=seed, samples=samples,
-                                        progress=progress, notify=notify),)
+        predictions = (predict_campaign(campaign, extraction, sources, seed=seed, progress=progress,
+                                        notify=notify),)
     return Run(f"Identification report: {study.name}", (study,), predictions, tuple(run_steps), seed, samples,
                bayes_steps)
 
@@ -137,7 +137,7 @@ def _demo_work(shared: tuple[int, int, int, dict[str, JointSource]], task: tuple
         return study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes, bayes_steps=bayes_steps)
     if extraction is None:
         raise ValueError(f"{campaign.path}: the campaign has no FRFs to set a prediction against")
-    return predict_campaign(campaign, extraction, sources, seed=seed, samples=samples)
+    return predict_campaign(campaign, extraction, sources, seed=seed)
 
 
 def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, bayes_steps: int = 2000,

@@ -208,8 +208,8 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
         when None and the campaign has FRFs.
     seed : seeds the bootstrap of the moment matching's intervals, emcee, the Monte Carlo reference
         and the FRF band.
-    samples : Monte Carlo samples of the Figure 11 reference and of the FRF band (the paper:
-        10 000 and 1 000 to 10 000).
+    samples : Monte Carlo samples of the Figure 11 reference (the paper: 10 000); the FRF band takes
+        `BAND_SAMPLES` draws by SMR, as the paper's envelope.
     bayes : run the Bayesian identification where it applies; bayes_steps, bayes_burn : its
         kept and discarded steps per walker (burn-in default: a quarter of the kept steps, at most 500).
     mapper : runs the Monte Carlo reference's chunks (`workbench.workflow.execution.mapper`).
@@ -314,7 +314,7 @@ class Prediction:
 
 
 def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, JointSource], *, seed: int = 0,
-                     samples: int = 1000, progress: Progress | None = None, notify: Notify = None) -> Prediction:
+                     progress: Progress | None = None, notify: Notify = None) -> Prediction:
     """Predict a multi-bolt campaign from joint models identified on other campaigns (section 5).
 
     Parameters
@@ -323,7 +323,7 @@ def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, Joi
     extraction : its circle-fit modes (`extract_campaign`): the measured frequencies and damping.
     sources : group (or joint) name -> `JointSource`; joints that no source names keep the frame
         file's model (the report lists which).
-    seed, samples : of the FRF band's Monte Carlo.
+    seed : of the FRF band's draws (`BAND_SAMPLES` of them, by SMR).
 
     Raises
     ------
