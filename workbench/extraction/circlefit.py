@@ -93,7 +93,16 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as t_dist
 
-from workbench.extraction.circle_geometry import MIN_SIDE_POINTS, geometric, pair_damping, pairs, taubin
+from workbench.extraction.circle_geometry import (
+    MIN_SIDE_POINTS,
+    geometric,
+    pair_damping,
+    pairs,
+    sweep_angle,
+    sweep_gradient,
+    taubin,
+    wrap_angle,
+)
 from workbench.extraction.multimode import inverse_normal, noise_level, second_mode
 
 __all__ = [
@@ -247,30 +256,6 @@ def to_mobility(frequency_hz: np.ndarray, frf: np.ndarray, quantity: str) -> np.
 # --------------------------------------------------------------------------------------------
 # circle and sweep
 
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def _sweep_model(omega, phi0, omega_r, zeta, sense):
-    x = (omega**2 - omega_r**2) / (2.0 * zeta * omega_r * omega)
-    return phi0 - sense * 2.0 * np.arctan(x)
-
-
-def _sweep_gradient(omega: np.ndarray, phi0: float, ratio: float, log_zeta: float, w0: float,
-                    sense: float) -> np.ndarray:
-    """Derivatives of `_sweep_model` with ``omega_r = ratio * w0``, ``zeta = exp(log_zeta)`` (clipped
-    as in the fits: zero outside the clip) with respect to (phi0, ratio, log_zeta), shape (n, 3).
-    Written out because finite differences were two thirds of a campaign's circle-fit time.
-    """
-    inside = -30.0 < log_zeta < 5.0
-    zeta = np.exp(np.clip(log_zeta, -30.0, 5.0))
-    omega_r = ratio * w0
-    x = (omega**2 - omega_r**2) / (2.0 * zeta * omega_r * omega)
-    d_angle = -sense * 2.0 / (1.0 + x**2)               # d model / d x
-    dx_domega_r = -omega / (2.0 * zeta * omega_r**2) - 1.0 / (2.0 * zeta * omega)
-    return np.column_stack([np.ones_like(omega), d_angle * dx_domega_r * w0, d_angle * -x * inside])
-
-
 def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float, float]:
     """Natural frequency, damping and diameter angle from the angles ``phi`` (rad) of the points
     seen from the centre: start where the sweep is fastest, then least squares on the exact
@@ -279,7 +264,7 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
     angles by more than `SENSE_RETRY` rad RMS (the direction cannot be read off the data: a mode
     resolved by one or two lines steps by nearly pi).
     """
-    step = _wrap(np.diff(phi))
+    step = wrap_angle(np.diff(phi))
     mid = 0.5 * (omega[1:] + omega[:-1])
     best, best_sense, scale = None, 1.0, 1.0
     for sense in (1.0, -1.0):
@@ -296,10 +281,10 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
         phi0 = float(phi[k] - sense * step[k] / 2)
 
         def residual(p, sense=sense, w0=w0):
-            return _wrap(phi - _sweep_model(omega, p[0], p[1] * w0, np.exp(np.clip(p[2], -30.0, 5.0)), sense))
+            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(np.clip(p[2], -30.0, 5.0)), sense))
 
         def jacobian(p, sense=sense, w0=w0):
-            return -_sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
+            return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
 
         for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
             sol = least_squares(residual, [phi0, 1.0, np.log(z0)], jac=jacobian, method="lm", xtol=1e-15,
@@ -336,7 +321,7 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
     def model(p):
         c = complex(p[0], p[1])
         zeta_p = np.exp(np.clip(p[5], -30.0, 5.0))
-        circle = c + p[2] * np.exp(1j * _sweep_model(omega, p[3], p[4] * w0, zeta_p, sense))
+        circle = c + p[2] * np.exp(1j * sweep_angle(omega, p[3], p[4] * w0, zeta_p, sense))
         if n_trend:
             circle = circle + basis @ (p[6:6 + n_trend] + 1j * p[6 + n_trend:])
         return circle
@@ -346,8 +331,8 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
         return np.concatenate([r.real, r.imag])
 
     def jacobian(p):
-        on_circle = np.exp(1j * _sweep_model(omega, p[3], p[4] * w0, np.exp(np.clip(p[5], -30.0, 5.0)), sense))
-        turn = (p[2] * 1j * on_circle)[:, None] * _sweep_gradient(omega, p[3], p[4], p[5], w0, sense)
+        on_circle = np.exp(1j * sweep_angle(omega, p[3], p[4] * w0, np.exp(np.clip(p[5], -30.0, 5.0)), sense))
+        turn = (p[2] * 1j * on_circle)[:, None] * sweep_gradient(omega, p[3], p[4], p[5], w0, sense)
         d = np.column_stack([np.ones_like(u), np.full_like(u, 1j), on_circle, turn, basis, 1j * basis])
         return -np.concatenate([d.real, d.imag])
 
@@ -448,7 +433,7 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
         omega, data, centre, radius, phi0, omega_r, zeta_sweep, sense, n_trend)
     y = data - trend
     phi = np.angle(y - centre)
-    psi = _wrap(phi - phi0)
+    psi = wrap_angle(phi - phi0)
     estimates, n_above, n_below = pairs(omega, psi, omega_r, sense)
     zeta = float(np.mean(estimates)) if estimates.size else zeta_sweep
     zeta = zeta if np.isfinite(zeta) and zeta > 0 else zeta_sweep
@@ -460,7 +445,7 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     upper, lower = coefficients[0], coefficients[1]
 
     radial = np.abs(y - centre) - radius
-    misfit = y - (centre + radius * np.exp(1j * _sweep_model(omega, phi0, omega_r, zeta_sweep, sense)))
+    misfit = y - (centre + radius * np.exp(1j * sweep_angle(omega, phi0, omega_r, zeta_sweep, sense)))
     n = omega.size
     circle_error = float(np.sqrt(np.mean(radial**2)) / radius) if radius > 0 else np.inf
     # the curve's own noise, independent of the fit, in mobility units at resonance
