@@ -267,3 +267,15 @@ def test_intervals_widen_with_noise_few_lines_and_distortion():
     assert coarse[0] > base[0] and coarse[1] > base[1]
     leaky = width(1.0, 50.0, 0.1)
     assert coarse[2] == 0.0 and leaky[2] > 0.0 and leaky[0] > 5 * coarse[0]
+
+
+def test_a_start_outside_the_pole_range_is_brought_to_its_edge():
+    """A wide one-pole fit (zeta 0.5) gives two-pole starts at f (1 - 2 zeta) = 0 Hz: no log(0), and
+    the poles stay within the band widened by its width (pure noise: nothing to find)."""
+    f = np.arange(0.0, 1250.25, 0.25)
+    rng = np.random.default_rng(0)
+    h = rng.normal(size=(3, f.size)) + 1j * rng.normal(size=(3, f.size))
+    band = (25.5, 27.5)
+    fit = mm.pole_fit(f, h, band, "accelerance", mm.noise_level(h), [[(0.0, 0.25), (59.0, 0.25)]])
+    width = band[1] - band[0]
+    assert np.all((fit.frequency_hz >= band[0] - width - 1e-9) & (fit.frequency_hz <= band[1] + width + 1e-9))

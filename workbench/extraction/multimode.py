@@ -226,7 +226,10 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
     best = None
     for start in starts:
         s = np.asarray(start, float)
-        x0 = bounded(np.concatenate([np.log(2.0 * np.pi * s[:, 0]), np.log(np.clip(s[:, 1], 1e-6, 0.5))]))
+        # a start outside the poles' range (a wide one-pole fit's f (1 - 2 zeta) can reach 0 Hz) is
+        # brought to its edge before the logarithm
+        w0 = np.clip(2.0 * np.pi * s[:, 0], np.exp(w_lo), np.exp(w_hi))
+        x0 = bounded(np.concatenate([np.log(w0), np.log(np.clip(s[:, 1], 1e-6, 0.5))]))
         sol = least_squares(residual, x0, jac=jacobian, method="lm", xtol=1e-10, ftol=1e-10)
         if best is None or sol.cost < best.cost:
             best = sol
