@@ -197,10 +197,10 @@ def _notify(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
-def _write_report(run, out: OutputSet, start: float) -> str:
+def _write_report(run, out: OutputSet, start: float, workers: int = 1) -> str:
     from workbench.report.page import report_files
 
-    files = report_files(run, time.perf_counter() - start)
+    files = report_files(run, time.perf_counter() - start, workers)
     out.commit(dict(files))  # the page and its tables as CSV: one output set, all or nothing
     return f"{out.out}/index.html (and {len(files) - 1} table(s) as CSV beside it)"
 
@@ -213,7 +213,7 @@ def _report(args: argparse.Namespace, out: OutputSet) -> str:
     run = report_run(args.campaign, joints_from=args.joints_from or (), seed=args.seed, samples=args.samples,
                      bayes=not args.no_bayes, bayes_steps=args.steps, workers=args.workers,
                      bands=parse_bands(args.bands), progress=_progress(), notify=_notify)
-    return f"report of {run.studies[0].name!r} written to {_write_report(run, out, start)}"
+    return f"report of {run.studies[0].name!r} written to {_write_report(run, out, start, args.workers)}"
 
 
 DEMO_OUT = "out/demo"  # untracked (.gitignore): the demo never rewrites a file of the repository
@@ -225,7 +225,7 @@ def _demo(args: argparse.Namespace, out: OutputSet) -> str:
     start = time.perf_counter()
     run = demo_run(args.campaigns, seed=args.seed, samples=args.samples, bayes_steps=args.steps,
                    workers=args.workers, progress=_progress(), notify=_notify)
-    return f"demo report written to {_write_report(run, out, start)}"
+    return f"demo report written to {_write_report(run, out, start, args.workers)}"
 
 
 def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:

@@ -162,16 +162,16 @@ def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, pow
     core = wr[None, :] ** 2 - omega[:, None] ** 2 + 2j * zeta[None, :] * wr[None, :] * omega[:, None]
     damping = 2j * zeta[None, :] * wr[None, :] * omega[:, None]
     g = basis[:, :n_poles] / core  # d(1 / core) = -d(core) / core^2, the pole column being (i w)^p / core
-    columns = []
-    for d in (-g * (2.0 * wr[None, :] ** 2 + damping), -g * damping):  # d/d log w_r, d/d log zeta
-        for j in range(n_poles):
-            first = d[:, j:j + 1] * coefficients[j][None, :]
-            first = first - q @ (q.conj().T @ first)
-            # (Phi^+)^H e_j = Q R^-H e_j / norms_j
-            lift = q @ np.linalg.solve(upper.conj().T, np.eye(upper.shape[0])[:, j]) / norms[j]
-            v = -(first + lift[:, None] * (d[:, j].conj() @ r)[None, :])
-            columns.append(np.concatenate([v.real.ravel(), v.imag.ravel()]))
-    return np.column_stack(columns)
+    # d/d log w_r, then d/d log zeta, of each pole column: (n, 2 n_poles), parameter k moving column k % n_poles
+    d = np.concatenate([-g * (2.0 * wr[None, :] ** 2 + damping), -g * damping], axis=1)
+    pole = np.tile(np.arange(n_poles), 2)
+    first = d[:, :, None] * coefficients[pole][None, :, :]                      # (n, 2 n_poles, n_curves)
+    flat = first.reshape(first.shape[0], -1)
+    first = (flat - q @ (q.conj().T @ flat)).reshape(first.shape)                # (I - P) dPhi c
+    lift = q @ np.linalg.solve(upper.conj().T, np.eye(upper.shape[0])[:, :n_poles]) / norms[:n_poles]
+    second = lift[:, pole][:, :, None] * (d.conj().T @ r)[None, :, :]            # (Phi^+)^H dPhi^H r
+    v = -(first + second).transpose(1, 0, 2).reshape(2 * n_poles, -1)
+    return np.concatenate([v.real, v.imag], axis=1).T
 
 
 def _solve(omega, data, x, power):

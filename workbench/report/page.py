@@ -21,7 +21,7 @@ from workbench import __version__
 from workbench.identify.bayes import load_arviz
 from workbench.report.pieces import absent as _absent
 from workbench.report.pieces import escape as _e
-from workbench.report.pieces import html_figure
+from workbench.report.pieces import figure_pool, html_figure
 from workbench.report.plots import (
     band_figure,
     band_zoom_figure,
@@ -416,7 +416,7 @@ def render_report(run: Run, total_wall_s: float | None = None) -> str:
     return report_files(run, total_wall_s)["index.html"]
 
 
-def report_files(run: Run, total_wall_s: float | None = None) -> dict[str, str]:
+def report_files(run: Run, total_wall_s: float | None = None, workers: int = 1) -> dict[str, str]:
     """The report's files: ``index.html`` and one CSV per table of the page (`workbench.report.tables`),
     file name -> text, for the command's output set.
 
@@ -424,7 +424,16 @@ def report_files(run: Run, total_wall_s: float | None = None) -> dict[str, str]:
     ----------
     run : studies and predictions (`workbench.workflow.runs.report_run` or `demo_run`).
     total_wall_s : the whole command's wall time, s, shown in "what was done".
+    workers : processes drawing the figures while the page is built (`workbench.report.pieces.figure_pool`).
     """
+    with figure_pool(workers) as pool:
+        files = _page_files(run, total_wall_s)
+        if pool is not None:
+            files["index.html"] = pool.resolve(files["index.html"])
+    return files
+
+
+def _page_files(run: Run, total_wall_s: float | None) -> dict[str, str]:
     tables = Tables()
     summary = summary_box(run, tables)
     campaigns = [s.campaign for s in run.studies] + [p.campaign for p in run.predictions]
