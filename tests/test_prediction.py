@@ -256,3 +256,25 @@ def test_band_lines_keep_the_nominal_peaks_and_thin_the_rest(vertical, band):
     # each line's statistics are its own: the same numbers as on the full axis
     for field in ("nominal", "mean", "lower", "upper", "p05", "p95"):
         np.testing.assert_array_equal(getattr(thin, field), getattr(band, field)[:, kept])
+
+
+def test_the_compressed_basis_of_many_joints_gives_the_exact_modes_of_each_draw():
+    """24 random joints: each mode's sensitivities compressed to their principal directions
+    (workbench.uq.reduced), against full solves of the same draws; the joint matrices projected on
+    the rows they touch give the full products."""
+    from workbench.model.generate import multibay_frame
+    from workbench.uq.reduced import _project, reduced_basis, reduced_modes
+
+    frame = multibay_frame(4, 3, element_length=0.05)
+    model, joints = assemble(frame), joint_model(frame)
+    nominal = model_modes(model, 10)
+    draws = joints.sample(20, np.random.default_rng(4))
+    exact = np.array([model_modes(model, 10, g).frequency_hz for g in draws])
+    compressed = reduced_basis(model, nominal, joints, compress=True)
+    natural, _ = reduced_modes(compressed, draws, np.array([0]))
+    assert compressed.size < nominal.count * (1 + len(frame.joints))
+    assert np.max(np.abs(natural / exact - 1.0)) < 1e-6
+    basis = compressed.basis
+    for k in (model.stiffness_rest, *model.stiffness_joints[:3]):
+        full = basis.T @ (k @ basis)
+        assert np.abs(_project(k, basis) - full).max() <= 1e-9 * np.abs(full).max()

@@ -14,6 +14,14 @@ is of second order in SMR2's vector error: measured against full solves on the p
 0.22, where SMR2's own Rayleigh quotient per mode is off by up to 6e-3 in the tails. Each draw's
 Ritz modes are paired with the nominal modes by MAC, one to one, as exact solves are
 (`workbench.uq.stochastic.track_modes`).
+
+With many random joints the whole span is too large (10 modes and 200 joints: 2010 vectors, and
+200 projected joint matrices of 2010^2 each, tens of GB). Above `MAX_FULL_BASIS` vectors each mode's
+sensitivities are compressed first: the first-order change of mode k, ``sum_j dphi_k/dgamma_j
+(gamma_j - 1)``, has the mass-weighted covariance ``D_k diag(cov^2) D_k^T``; its principal directions
+are kept until the variance left out is below `VARIANCE_LEFT` of the total (a Karhunen-Loeve
+truncation of SMR2's vector change; the Ritz error is of second order in what is left out). Each
+mode's derivatives are computed and compressed in turn, so the memory is one mode's ``n x r``.
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment
 from threadpoolctl import threadpool_limits
 
@@ -29,9 +38,11 @@ from workbench.model.modal import Modes, shared_eigenvalues
 from workbench.uq.smr import Sensitivities, eigenvector_derivatives
 from workbench.uq.stochastic import JointModel
 
-__all__ = ["ReducedBasis", "reduced_basis", "reduced_modes", "RELATIVE_RANK"]
+__all__ = ["ReducedBasis", "reduced_basis", "reduced_modes", "RELATIVE_RANK", "MAX_FULL_BASIS", "VARIANCE_LEFT"]
 
 RELATIVE_RANK = 1e-10  # basis directions whose mass-Gram eigenvalue is below this (relative) are dependent
+MAX_FULL_BASIS = 400  # SMR2's whole span kept up to this many vectors; compressed per mode above
+VARIANCE_LEFT = 1e-8  # share of a mode's first-order vector variance the compressed basis may leave out
 BATCH = 2000  # draws solved per stacked eigen-decomposition (memory: BATCH m^2 doubles)
 
 
@@ -58,8 +69,11 @@ class ReducedBasis:
         return int(self.basis.shape[1])
 
 
-def reduced_basis(model: Model, nominal: Modes, joints: JointModel) -> ReducedBasis:
+def reduced_basis(model: Model, nominal: Modes, joints: JointModel, compress: bool | None = None) -> ReducedBasis:
     """SMR2's basis for ``nominal``: its modes and their sensitivities to the random joints (eq. 7).
+
+    ``compress``: each mode's sensitivities compressed to their principal directions (module
+    docstring); default, when the whole span would exceed `MAX_FULL_BASIS` vectors.
 
     Raises
     ------
@@ -72,17 +86,62 @@ def reduced_basis(model: Model, nominal: Modes, joints: JointModel) -> ReducedBa
     rest, per_joint = joint_energies(model, nominal.shapes)
     sens = Sensitivities(nominal, rest, per_joint.T)
     random = np.flatnonzero(joints.random)
-    derivatives = eigenvector_derivatives(model, sens, np.arange(nominal.count), random)  # (K, n, r)
-    raw = np.concatenate([nominal.shapes, derivatives.transpose(1, 0, 2).reshape(model.size, -1)], axis=1)
+    if compress is None:
+        compress = nominal.count * (1 + random.size) > MAX_FULL_BASIS
+    if compress:
+        parts = [_principal(model, eigenvector_derivatives(model, sens, np.array([k]), random)[0],
+                            joints.cov[random]) for k in range(nominal.count)]
+        raw = np.concatenate([nominal.shapes, *parts], axis=1)
+    else:
+        derivatives = eigenvector_derivatives(model, sens, np.arange(nominal.count), random)  # (K, n, r)
+        raw = np.concatenate([nominal.shapes, derivatives.transpose(1, 0, 2).reshape(model.size, -1)], axis=1)
     # mass-orthonormal span: the derivatives of modes sharing a joint zone are nearly dependent
     gram = raw.T @ (model.mass @ raw)
     values, vectors = np.linalg.eigh(0.5 * (gram + gram.T))
     keep = values > RELATIVE_RANK * values.max()
     basis = raw @ (vectors[:, keep] / np.sqrt(values[keep]))
     mass_basis = model.mass @ basis
-    projected = np.array([basis.T @ (k @ basis) for k in (model.stiffness_rest, *model.stiffness_joints)])
+    projected = np.array([_project(k, basis) for k in (model.stiffness_rest, *model.stiffness_joints)])
     projected = 0.5 * (projected + projected.transpose(0, 2, 1))
     return ReducedBasis(basis, projected[0], projected[1:], mass_basis.T @ nominal.shapes)
+
+
+def _project(matrix, basis: np.ndarray) -> np.ndarray:
+    """``V^T A V`` for a sparse ``A`` on the rows and columns it touches only: a joint's matrix
+    lives on its zone's few dofs, and the full product cost n m^2 per joint (2.4 Tflop for 200
+    joints and 778 vectors at 20 000 dofs).
+    """
+    a = sp.csr_matrix(matrix)
+    touched = np.unique(np.concatenate([np.repeat(np.arange(a.shape[0]), np.diff(a.indptr)), a.indices]))
+    if touched.size > a.shape[0] // 4:
+        return basis.T @ (a @ basis)
+    local = basis[touched]
+    return local.T @ (a[touched][:, touched] @ local)
+
+
+def _principal(model: Model, derivatives: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """The principal directions of one mode's first-order vector change (module docstring).
+
+    Parameters
+    ----------
+    derivatives : (n, r) ``dphi_k / dgamma_j`` of the random joints.
+    cov : (r,) their CoVs, the standard deviations of ``gamma_j - 1``.
+
+    Returns
+    -------
+    (n, q) directions, mass-orthonormal, leaving out at most `VARIANCE_LEFT` of the variance.
+    """
+    weighted = derivatives * cov[None, :]
+    gram = weighted.T @ (model.mass @ weighted)
+    values, vectors = np.linalg.eigh(0.5 * (gram + gram.T))
+    values, vectors = values[::-1], vectors[:, ::-1]
+    total = float(values.clip(0.0).sum())
+    if total <= 0.0:
+        return np.zeros((derivatives.shape[0], 0))
+    left = total - np.cumsum(values.clip(0.0))
+    keep = int(np.searchsorted(-left, -VARIANCE_LEFT * total)) + 1  # the first q with left_q <= share
+    keep = min(keep, int(np.sum(values > RELATIVE_RANK * values[0])))
+    return weighted @ (vectors[:, :keep] / np.sqrt(values[:keep]))
 
 
 def reduced_modes(reduced: ReducedBasis, gammas: np.ndarray, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
