@@ -18,7 +18,7 @@ from conftest import REPO
 from workbench.cli import main
 from workbench.io.campaign import Factor
 from workbench.model.frame_file import read_frame
-from workbench.report.page import SECTION_TITLES, render_report
+from workbench.report.page import SECTION_TITLES, render_report, report_files
 from workbench.report.tables import csv_name, declared_files
 from workbench.rig.simulate import RigSettings, simulate_campaign, write_with_truth
 from workbench.workflow.measured import load_and_extract
@@ -197,6 +197,8 @@ def test_section5_measured_columns_are_the_nan_aware_statistics_of_the_circle_fi
     np.testing.assert_allclose(mean, np.nanmean(f, axis=0), atol=0.0051)
     np.testing.assert_allclose(std, np.nanstd(f, axis=0, ddof=1), atol=0.00051)
     assert used[2] == f"{f.shape[0] - 1}/{f.shape[0]}" and used[0] == f"{f.shape[0]}/{f.shape[0]}"
+    # the figures drawn in a pool of processes (workbench.report.pieces.figure_pool) are the same bytes
+    assert report_files(run, None, 2) == report_files(run, None, 1)
 
 
 @pytest.mark.slow  # 25-35 s: in CI's slow step (.ci/slow_tests)
