@@ -17,7 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from workbench.identify.moments import moment_matching
+from workbench.identify.moments import MomentFit, moment_matching
 from workbench.model.assembly import assemble
 from workbench.progress import Progress
 from workbench.workflow.execution import mapper as task_mapper
@@ -50,12 +50,17 @@ class Run:
     diagnosis: dict | None = None  # a diagnosis.json record, in the report's summary where one is part of the run
 
 
-def _sources_of(path: str, loaded: Loaded, seed: int) -> dict[str, JointSource]:
-    """Moment matching of one loaded campaign: group name -> `JointSource`."""
+def _fit_of(path: str, loaded: Loaded, seed: int) -> MomentFit:
+    """Moment matching of one loaded campaign, as `study_campaign` does it."""
     campaign, extraction = loaded
     data = (extraction.measured_modes(f"{path} (modes by circle fit of its FRFs)") if extraction is not None
             else measured_modes(campaign, None, "identify from"))
-    return joint_sources(moment_matching(assemble(campaign.frame), data, seed=seed), campaign_label(campaign))
+    return moment_matching(assemble(campaign.frame), data, seed=seed)
+
+
+def _sources_of(path: str, loaded: Loaded, seed: int) -> dict[str, JointSource]:
+    """Moment matching of one loaded campaign: group name -> `JointSource`."""
+    return joint_sources(_fit_of(path, loaded, seed), campaign_label(loaded[0]))
 
 
 def _merge_sources(found: Mapping[str, Mapping[str, JointSource]]) -> dict[str, JointSource]:
@@ -121,20 +126,23 @@ def report_run(campaign_path: str | Path, *, joints_from: Sequence[str | Path] =
                bayes_steps)
 
 
-def _demo_load(seed: int, task: tuple[str, bool]) -> tuple[Loaded, dict[str, JointSource]]:
-    """Stage one of the demo: a campaign loaded and circle-fitted, and its joint models when asked."""
+def _demo_load(seed: int, task: tuple[str, bool]) -> tuple[Loaded, MomentFit | None]:
+    """Stage one of the demo: a campaign loaded and circle-fitted, and moment-matched when asked."""
     path, identify = task
     loaded = load_and_extract(path)
-    return loaded, (_sources_of(path, loaded, seed) if identify else {})
+    return loaded, (_fit_of(path, loaded, seed) if identify else None)
 
 
-def _demo_work(shared: tuple[int, int, int, dict[str, JointSource]], task: tuple[str, Loaded, bool]
-               ) -> Study | Prediction:
-    """Stage two of the demo: a campaign's study (``"study"``) or section 5 prediction (``"predict"``)."""
+def _demo_work(shared: tuple[int, int, int, dict[str, JointSource]],
+               task: tuple[str, Loaded, bool, MomentFit | None]) -> Study | Prediction:
+    """Stage two of the demo: a campaign's study (``"study"``, reusing stage one's moment matching)
+    or section 5 prediction (``"predict"``).
+    """
     seed, samples, bayes_steps, sources = shared
-    kind, (campaign, extraction), bayes = task
+    kind, (campaign, extraction), bayes, fit = task
     if kind == "study":
-        return study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes, bayes_steps=bayes_steps)
+        return study_campaign(campaign, extraction, seed=seed, samples=samples, bayes=bayes, bayes_steps=bayes_steps,
+                              fit=fit)
     if extraction is None:
         raise ValueError(f"{campaign.path}: the campaign has no FRFs to set a prediction against")
     return predict_campaign(campaign, extraction, sources, seed=seed)
@@ -166,13 +174,15 @@ def demo_run(campaigns_dir: str | Path, *, seed: int = 0, samples: int = 500, ba
     with task_mapper(workers, None, progress) as tasks:
         stage = tasks(_demo_load, [(str(root / n), n in DEMO_STUDIES) for n in order], "circle fits", seed)
         loaded = {n: pair for n, (pair, _) in zip(order, stage)}
-        sources = _merge_sources({str(root / n): found for n, (_, found) in zip(order, stage)})
+        fits = {n: fit for n, (_, fit) in zip(order, stage)}
+        sources = _merge_sources({str(root / n): joint_sources(fits[n], campaign_label(loaded[n][0]))
+                                  for n in DEMO_STUDIES})
         run_steps = [Step("load and circle-fit", time.perf_counter() - start,
                           f"{len(names)} campaigns, {workers} processes")]
         if notify is not None:
             notify(f"loaded and circle-fitted {len(names)} campaigns ({run_steps[0].wall_time_s:.1f} s)")
-        work = ([("study", loaded[n], n in DEMO_BAYES) for n in DEMO_STUDIES]
-                + [("predict", loaded[n], False) for n in DEMO_PREDICTIONS])
+        work = ([("study", loaded[n], n in DEMO_BAYES, fits[n]) for n in DEMO_STUDIES]
+                + [("predict", loaded[n], False, None) for n in DEMO_PREDICTIONS])
         done = tasks(_demo_work, work, "studies and predictions", (seed, samples, bayes_steps, sources))
     for result in done:
         tell(notify, f"{result.name}: ", result.steps)

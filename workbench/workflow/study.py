@@ -198,7 +198,8 @@ def _bayes_refusal(campaign, data: MeasuredModes, bayes: bool) -> str:
 
 def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int = 0, samples: int = 1000,
                    bayes: bool = True, bayes_steps: int = 3000, bayes_burn: int | None = None,
-                   mapper: Mapper | None = None, progress: Progress | None = None, notify: Notify = None) -> Study:
+                   mapper: Mapper | None = None, progress: Progress | None = None, notify: Notify = None,
+                   fit: MomentFit | None = None) -> Study:
     """Identify and propagate one campaign (module notes).
 
     Parameters
@@ -213,6 +214,8 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
     bayes : run the Bayesian identification where it applies; bayes_steps, bayes_burn : its
         kept and discarded steps per walker (burn-in default: a quarter of the kept steps, at most 500).
     mapper : runs the Monte Carlo reference's chunks (`workbench.workflow.execution.mapper`).
+    fit : the campaign's moment matching if already done with this ``seed`` (the demo's first stage);
+        done here when None.
     progress : called as the long steps advance (`workbench.progress`); notify : one line per finished step.
     """
     steps = Steps(notify, f"{campaign_label(campaign)}: ")
@@ -231,11 +234,11 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
         data = measured_modes(campaign, None, "identify from")
 
     model = assemble(campaign.frame)
-    start = time.perf_counter()
-    fit = moment_matching(model, data, seed=seed)
+    fit = fit or moment_matching(model, data, seed=seed)
     sources = joint_sources(fit, campaign_label(campaign))
-    steps.add("moment matching", start, ", ".join(f"{g}: E = {s.youngs_modulus_pa / 1e9:.3g} GPa, "
-                                                  f"CoV = {100 * s.cov:.3g} %" for g, s in sources.items()), fit.seed)
+    steps.add("moment matching", None, ", ".join(f"{g}: E = {s.youngs_modulus_pa / 1e9:.3g} GPa, "
+                                                 f"CoV = {100 * s.cov:.3g} %" for g, s in sources.items()), fit.seed,
+              wall_time_s=fit.wall_time_s)
 
     posterior, bayes_note = None, _bayes_refusal(campaign, data, bayes)
     if not bayes_note:
