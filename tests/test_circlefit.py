@@ -73,11 +73,12 @@ def test_noise_free_frame_modal_constants():
     """A real frame: the modal constants are phi_j phi_k of the mass-normalised model."""
     from workbench.model.assembly import assemble
     from workbench.model.frame_file import read_frame
-    from workbench.model.modal import frame_frf, model_modes
+    from workbench.model.modal import model_modes
+    from workbench.model.structure import structure_frf
     model = assemble(read_frame(Path(__file__).resolve().parents[1] / "frames" / "one_bolt_vertical.toml"))
     modes = model_modes(model, 8)
     zeta = np.full(modes.count, 0.005)
-    frf = frame_frf(model, modes, F, "accelerance", zeta)
+    frf = structure_frf(model, modes, F, "accelerance", zeta)
     responses = [model.dof(s.point, s.dof) for s in model.frame.sensors]
     excitation = model.dof(model.frame.excitation.point, model.frame.excitation.dof)
     fr = modes.frequency_hz

@@ -8,7 +8,8 @@ import scipy.linalg as sla
 
 from workbench.model.assembly import assemble
 from workbench.model.generate import multibay_frame
-from workbench.model.modal import Modes, frame_frf, modal_frf, model_modes, solve_modes
+from workbench.model.modal import Modes, modal_frf, model_modes, solve_modes
+from workbench.model.structure import structure_frf
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +59,7 @@ def test_lightly_damped_peak_is_at_the_mode_with_the_modal_height(small):
 
 def test_frame_frf_uses_the_frame_sensors_and_damping(small):
     modes = model_modes(small, 6)
-    frf = frame_frf(small, modes, np.linspace(0, 500, 11), "accelerance")
+    frf = structure_frf(small, modes, np.linspace(0, 500, 11), "accelerance")
     assert frf.responses == ("top",) and frf.values.shape == (1, 11) and frf.quantity == "accelerance"
     assert frf.values[0, 0] == 0  # accelerance vanishes at 0 Hz
     with pytest.raises(ValueError, match="quantity"):

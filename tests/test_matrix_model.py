@@ -18,8 +18,8 @@ from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.matrix_file import is_matrix_model, read_matrix_model
 from workbench.model.matrix_io import load_op4
-from workbench.model.matrix_model import matrix_model_modes
 from workbench.model.modal import model_modes
+from workbench.model.structure import structure_modes
 
 REPO = Path(__file__).resolve().parents[1]
 N = 8  # dofs of the spring-mass chain
@@ -127,10 +127,10 @@ def test_op4_and_matrix_market_give_the_dense_frequencies(tmp_path, binary, layo
     expected = dense_frequencies(chain_matrices())
     for fmt in ("matrix-market", "op4"):
         model = read_matrix_model(write_model(tmp_path / fmt, fmt, binary=binary, layout=layout))
-        got = matrix_model_modes(model, N).frequency_hz
+        got = structure_modes(model, N).frequency_hz
         np.testing.assert_allclose(got, expected, rtol=1e-10)
     gamma = np.array([0.6, 1.7])
-    np.testing.assert_allclose(matrix_model_modes(model, N, gamma).frequency_hz,
+    np.testing.assert_allclose(structure_modes(model, N, gamma).frequency_hz,
                                dense_frequencies(chain_matrices(), gamma), rtol=1e-10)
 
 
@@ -165,8 +165,8 @@ def test_rows_in_any_order_and_no_coordinates(tmp_path):
 
 def test_sparse_and_dense_solvers_agree(tmp_path):
     model = read_matrix_model(write_model(tmp_path))
-    dense = matrix_model_modes(model, 4, method="dense").frequency_hz
-    np.testing.assert_allclose(matrix_model_modes(model, 4, method="sparse").frequency_hz, dense, rtol=1e-9)
+    dense = structure_modes(model, 4, method="dense").frequency_hz
+    np.testing.assert_allclose(structure_modes(model, 4, method="sparse").frequency_hz, dense, rtol=1e-9)
 
 
 def test_is_matrix_model_tells_models_from_frames(tmp_path):
@@ -206,7 +206,7 @@ def test_a_frame_exported_as_matrices_has_the_frame_frequencies(tmp_path, fmt):
     model = read_matrix_model(tmp_path / "model.toml")
     for gamma in (None, np.array([0.7, 1.4])):
         expected = model_modes(fm, 10, gamma).frequency_hz
-        np.testing.assert_allclose(matrix_model_modes(model, 10, gamma).frequency_hz, expected, rtol=1e-6)
+        np.testing.assert_allclose(structure_modes(model, 10, gamma).frequency_hz, expected, rtol=1e-6)
 
 
 # --- refusals -----------------------------------------------------------------------------------------

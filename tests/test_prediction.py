@@ -12,7 +12,8 @@ from conftest import REPO
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.joints import frame_with_joint_models, model_at_moduli
-from workbench.model.modal import frame_frf, model_modes
+from workbench.model.modal import model_modes
+from workbench.model.structure import structure_frf
 from workbench.uq import prediction
 from workbench.uq.prediction import compare_frequencies, frf_band
 from workbench.uq.stochastic import FrequencyMoments, JointModel, joint_model, quadrature_reference
@@ -45,7 +46,7 @@ def test_tiny_cov_collapses_onto_the_nominal_frf(vertical):
         # term, times the cancellation of some 1e3 between terms at an anti-resonance
         np.testing.assert_allclose(stat, nominal, rtol=FLOAT32_SUMS)
     # the nominal FRF is the frame's own, at the band's mode count
-    reference = frame_frf(vertical, model_modes(vertical, b.natural_hz.shape[1]), AXIS, "accelerance",
+    reference = structure_frf(vertical, model_modes(vertical, b.natural_hz.shape[1]), AXIS, "accelerance",
                           np.full(b.natural_hz.shape[1], 0.005))
     np.testing.assert_allclose(b.nominal, reference.values, rtol=1e-12)
     assert b.sensors == tuple(s.name for s in vertical.frame.sensors)
@@ -95,7 +96,7 @@ def test_each_sample_is_the_frame_frf_of_its_own_modulus(vertical):
         modes = model_modes(vertical, count, gamma)
         assert np.all(np.diff(b.natural_hz[s]) > 0)  # no swap, so sorted order is tracked order
         np.testing.assert_allclose(b.natural_hz[s], modes.frequency_hz, rtol=1e-9)
-        curves.append(np.abs(frame_frf(vertical, modes, AXIS, "mobility", zeta[:count]).values))
+        curves.append(np.abs(structure_frf(vertical, modes, AXIS, "mobility", zeta[:count]).values))
     np.testing.assert_allclose(b.lower, np.minimum(*curves), rtol=FLOAT32_SUMS)
     np.testing.assert_allclose(b.upper, np.maximum(*curves), rtol=FLOAT32_SUMS)
 

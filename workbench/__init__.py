@@ -8,7 +8,8 @@ from workbench.io.outputs import write_frame
 from workbench.model.assembly import Model, assemble
 from workbench.model.frame import Frame, FrameFileError
 from workbench.model.frame_file import read_frame
-from workbench.model.modal import FRFSet, Modes, frame_frf, mac, model_modes, solve_modes
+from workbench.model.modal import FRFSet, Modes, mac, model_modes, solve_modes
+from workbench.model.structure import structure_frf
 
 __all__ = [
     "Frame",
@@ -22,6 +23,6 @@ __all__ = [
     "solve_modes",
     "model_modes",
     "mac",
-    "frame_frf",
+    "structure_frf",
 ]
 __version__ = "0.1.0"

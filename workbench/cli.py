@@ -25,8 +25,8 @@ from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.matrix_file import is_matrix_model, read_matrix_model
-from workbench.model.matrix_model import matrix_model_modes
-from workbench.model.modal import model_modes
+from workbench.model.matrix_model import MatrixModel
+from workbench.model.structure import Structure, structure_modes
 from workbench.progress import Progress
 from workbench.report.tables import declared_files
 from workbench.uq.limits import smr1_cov_warning
@@ -72,13 +72,15 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _structure(path: Path) -> Structure:
+    """A frame file assembled, or a matrix model read (CONTRACTS.md sections 1 and 4)."""
+    return read_matrix_model(path) if is_matrix_model(path) else assemble(read_frame(path))
+
+
 def _modes(args: argparse.Namespace, out: OutputSet) -> str:
-    if is_matrix_model(args.frame):
-        matrices = read_matrix_model(args.frame)
-        modes, name, size = matrix_model_modes(matrices, args.count), matrices.name, matrices.mass.shape[0]
-    else:
-        model = assemble(read_frame(args.frame))
-        modes, name, size = model_modes(model, args.count), model.frame.name, model.size
+    model = _structure(args.frame)
+    modes = structure_modes(model, args.count)
+    name, size = (model.name if isinstance(model, MatrixModel) else model.frame.name), model.size
     text = csv_text(["mode", "frequency_hz"],
                     ((k + 1, float(f)) for k, f in enumerate(modes.frequency_hz)))
     out.commit({"modes.csv": text})
@@ -86,8 +88,8 @@ def _modes(args: argparse.Namespace, out: OutputSet) -> str:
 
 
 def _propagate(args: argparse.Namespace, out: OutputSet) -> str:
-    model = assemble(read_frame(args.frame))
-    joints = joint_model(model.frame)
+    model = _structure(args.frame)
+    joints = joint_model(model)
     if not joints.random.any():
         raise ValueError(f"{args.frame}: joints: no joint has a cov > 0, so nothing varies")
     if (caution := smr1_cov_warning(model, joints, args.method)) is not None:

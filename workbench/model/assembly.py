@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from workbench.model import elements
-from workbench.model.frame import DOF_NAMES, Frame, member_length, points_on_member
+from workbench.model.frame import DOF_NAMES, Frame, Joint, member_length, points_on_member
 from workbench.model.pattern import JointPattern
 
 __all__ = ["Mesh", "ElementData", "Model", "mesh_frame", "assemble", "element_energies", "joint_energies",
@@ -115,6 +115,25 @@ class Model:
     @property
     def joint_names(self) -> tuple[str, ...]:
         return self.frame.joint_names
+
+    @property
+    def joints(self) -> tuple[Joint, ...]:
+        """The frame's joints (name, mean modulus, cov, group), in the order of ``stiffness_joints``."""
+        return self.frame.joints
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """Each joint's group (its own name when the file gives none)."""
+        return tuple(j.group for j in self.frame.joints)
+
+    @property
+    def source(self) -> str:
+        """The frame file's path, for messages."""
+        return self.frame.source
+
+    def damping_ratio(self, mode_count: int) -> tuple[float, ...]:
+        """Modal damping ratios of the first `mode_count` modes (the frame's ``[damping]``)."""
+        return self.frame.damping_ratio(mode_count)
 
     def stiffness(self, gamma: np.ndarray | None = None) -> sp.csr_matrix:
         """``K(gamma) = K_rest + sum_j gamma_j K_j`` (eq. 4); ``gamma = None`` means all ones."""

@@ -9,8 +9,9 @@ solves at a point without copying the model (the nominal fit's evaluations, SMR1
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -20,12 +21,19 @@ from workbench.model.frame import Frame
 __all__ = ["joint_scale", "model_at_moduli", "frame_with_joint_models"]
 
 
-def joint_scale(frame: Frame, moduli_pa: np.ndarray) -> np.ndarray:
+class Jointed(Protocol):
+    """Anything with joints in a fixed order: a frame, an assembled frame, a matrix model."""
+
+    @property
+    def joints(self) -> Sequence[Any]: ...
+
+
+def joint_scale(frame: Jointed, moduli_pa: np.ndarray) -> np.ndarray:
     """Per joint ``Y_j / Y_file_j``: the ``gamma`` of ``Model.stiffness`` that puts joint j at ``moduli_pa[j]``.
 
     Parameters
     ----------
-    frame : the frame the model was assembled from (its joints' file moduli, Pa).
+    frame : the frame the model was assembled from, or a matrix model (its joints' file moduli, Pa).
     moduli_pa : (n_joints,) joint moduli, Pa, in the frame's joint order.
 
     Raises

@@ -32,7 +32,6 @@ __all__ = [
     "modal_magnitude",
     "modal_frf",
     "add_noise",
-    "frame_frf",
 ]
 
 # dofs; above it sparse shift-invert Lanczos is faster for the first tens of modes (measured: 7 ms
@@ -344,22 +343,3 @@ def add_noise(values: np.ndarray, snr_db: float | None, rng: np.random.Generator
     sigma = np.sqrt(np.mean(np.abs(values) ** 2, axis=-1, keepdims=True)) * 10.0 ** (-snr_db / 20.0)
     noise = rng.standard_normal(values.shape) + 1j * rng.standard_normal(values.shape)
     return values + sigma * noise / np.sqrt(2.0)
-
-
-def frame_frf(model: Model, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",
-              damping_ratios: np.ndarray | None = None) -> FRFSet:
-    """FRFs at the frame's sensors for its excitation (CONTRACTS.md section 1).
-
-    ``damping_ratios`` defaults to the frame's ``[damping]`` table (the last value repeats).
-    """
-    frame = model.frame
-    if frame.excitation is None:
-        raise ValueError(f"{frame.source}: excitation: the frame has no [excitation] table")
-    if not frame.sensors:
-        raise ValueError(f"{frame.source}: sensors: the frame has no [[sensors]]")
-    if damping_ratios is None:
-        damping_ratios = np.array(frame.damping_ratio(modes.count))
-    responses = np.array([model.dof(s.point, s.dof) for s in frame.sensors])
-    excitation = model.dof(frame.excitation.point, frame.excitation.dof)
-    values = modal_frf(modes, frequency_hz, responses, excitation, damping_ratios, quantity)
-    return FRFSet(np.asarray(frequency_hz, float), values, tuple(s.name for s in frame.sensors), quantity)

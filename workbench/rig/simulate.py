@@ -81,7 +81,8 @@ from workbench.io.campaign import PAPER_AMPLITUDE_RATIOS, Campaign, Factor, camp
 from workbench.io.outputs import json_text, write_outputs
 from workbench.model.assembly import assemble, joint_energies
 from workbench.model.frame import Frame
-from workbench.model.modal import add_noise, frame_frf, model_modes
+from workbench.model.modal import add_noise, model_modes
+from workbench.model.structure import structure_frf
 from workbench.rig.designs import sweep_preloads
 from workbench.rig.effects import (
     AMPLITUDE_SOFTENING,
@@ -311,7 +312,7 @@ def _simulate_test(article: _Article, test_id: int, levels: dict[str, str], f_ax
         if j.name in laws:
             zeta = zeta + (float(laws[j.name].damping(preload[j.name], amplitude))
                            + article.extra_eta.get(j.name, 0.0)) * share[k]
-    frf = frame_frf(model, modes, f_axis, settings.quantity, zeta)
+    frf = structure_frf(model, modes, f_axis, settings.quantity, zeta)
     noisy = add_noise(frf.values, settings.snr_db, noise_rng)
     n = settings.mode_count
     nominal_modulus = {j.name: j.youngs_modulus for j in article.nominal.joints}

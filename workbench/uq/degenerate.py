@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.model.assembly import Model, joint_energies
 from workbench.model.modal import Modes
+from workbench.model.structure import Structure, structure_energies
 from workbench.uq.stochastic import JointModel, expectation_rule
 
 __all__ = ["cluster_moments", "describe"]
@@ -30,7 +30,7 @@ def describe(modes: Modes, group: np.ndarray) -> str:
     return f"modes {listed} ({modes.frequency_hz[group[0]]:.6g} Hz)"
 
 
-def cluster_moments(model: Model, modes: Modes, group: np.ndarray, joints: JointModel,
+def cluster_moments(model: Structure, modes: Modes, group: np.ndarray, joints: JointModel,
                     seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Mean and std (Hz) of a degenerate group's frequencies, Rayleigh-Ritz on its subspace.
 
@@ -49,7 +49,7 @@ def cluster_moments(model: Model, modes: Modes, group: np.ndarray, joints: Joint
     basis = modes.shapes[:, group]
     q = basis.shape[1]
     # reduced matrices from element energies, as SMR2 does: no cancellation in the small terms
-    rest, per_joint = joint_energies(model, np.repeat(basis, q, axis=1), np.tile(basis, (1, q)))
+    rest, per_joint = structure_energies(model, np.repeat(basis, q, axis=1), np.tile(basis, (1, q)))
     rest = rest.reshape(q, q)
     per_joint = per_joint.reshape(-1, q, q)
     gamma, weights = expectation_rule(joints, seed)

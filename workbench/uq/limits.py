@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.model.assembly import Model
+from workbench.model.structure import Structure
 from workbench.uq.stochastic import JointModel
 
 __all__ = ["COV_LIMIT", "SMR1_COV_WARNING", "check_cov", "smr1_cov_warning"]
@@ -25,11 +25,11 @@ COV_LIMIT = 0.4
 SMR1_COV_WARNING = 0.2
 
 
-def _where(model: Model, name: str) -> str:
-    for i, joint in enumerate(model.frame.joints):
-        if joint.name == name or joint.group == name:
-            return f"{model.frame.source}: joints[{i}].cov"
-    return f"{model.frame.source}: joint {name!r} cov"
+def _where(model: Structure, name: str) -> str:
+    for i, (joint, group) in enumerate(zip(model.joint_names, model.groups)):
+        if name in (joint, group):
+            return f"{model.source}: joints[{i}].cov"
+    return f"{model.source}: joint {name!r} cov"
 
 
 def _widest(joints: JointModel) -> tuple[str, float]:
@@ -38,7 +38,7 @@ def _widest(joints: JointModel) -> tuple[str, float]:
     return joints.names[worst], float(joints.cov[worst])
 
 
-def check_cov(model: Model, joints: JointModel, method: str) -> None:
+def check_cov(model: Structure, joints: JointModel, method: str) -> None:
     """Refuse a CoV above `COV_LIMIT` for every method but ``mc``.
 
     Raises
@@ -56,7 +56,7 @@ def check_cov(model: Model, joints: JointModel, method: str) -> None:
             "benchmarks/cov_limit.py); use --method mc")
 
 
-def smr1_cov_warning(model: Model, joints: JointModel, method: str) -> str | None:
+def smr1_cov_warning(model: Structure, joints: JointModel, method: str) -> str | None:
     """A warning for SMR1 and Pert2 above `SMR1_COV_WARNING`, or None."""
     if method not in ("smr1", "pert2") or not joints.cov.size:
         return None

@@ -18,16 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from workbench.model.assembly import Model
 from workbench.model.modal import (
     QUANTITIES,
     Modes,
-    frame_frf,
     modal_magnitude,
-    model_modes,
     shared_eigenvalues,
     solve_modes,
 )
+from workbench.model.structure import Structure, response_dofs, structure_frf, structure_modes
 from workbench.progress import Progress, report
 from workbench.uq.reduced import reduced_basis, reduced_modes
 from workbench.uq.stochastic import FrequencyMoments, JointModel, track_modes
@@ -129,23 +127,23 @@ def _damping(damping_ratio, count: int) -> np.ndarray:
     return zeta[np.minimum(np.arange(count), zeta.size - 1)]
 
 
-def _summed_modes(model: Model, top_hz: float, modes: int | None):
+def _summed_modes(model: Structure, top_hz: float, modes: int | None):
     """Nominal modes: ``modes`` of them, or those up to ``top_hz`` and `MODES_ABOVE` more."""
     limit = model.size - 2 - TRACKING_MODES
     if modes is not None:
         if not 1 <= modes <= limit:
             raise ValueError(f"modes: expected 1 to {limit} for a model of {model.size} dofs, got {modes}")
-        return model_modes(model, modes)
+        return structure_modes(model, modes)
     count = min(20, limit)
     while True:
-        nominal = model_modes(model, count)
+        nominal = structure_modes(model, count)
         keep = min(int(np.sum(nominal.frequency_hz <= top_hz)) + MODES_ABOVE, limit)
         if keep <= count:
             return Modes(nominal.eigenvalues[:keep], nominal.shapes[:, :keep])
         count = min(2 * count, limit)
 
 
-def frf_band(model: Model, joints: JointModel, frequency_hz: np.ndarray, damping_ratio: np.ndarray, *,
+def frf_band(model: Structure, joints: JointModel, frequency_hz: np.ndarray, damping_ratio: np.ndarray, *,
              quantity: str = "accelerance", samples: int = 10_000, seed: int = 0, modes: int | None = None,
              method: str = "smr", quiet_lines: int | None = None, check_samples: int = 0,
              progress: Progress | None = None) -> FRFBand:
@@ -171,7 +169,7 @@ def frf_band(model: Model, joints: JointModel, frequency_hz: np.ndarray, damping
 
     Parameters
     ----------
-    model : assembled `workbench.model.assembly.Model` of a frame with sensors and an excitation.
+    model : an assembled frame or a matrix model (`workbench.model.structure`), with sensors and an excitation.
     joints : Gamma laws of the model's joints (`workbench.uq.stochastic.joint_model`).
     frequency_hz : (n_freq,) frequency lines, Hz.
     damping_ratio : (n,) modal damping ratios of the nominal modes in order; the last repeats.
@@ -208,11 +206,11 @@ def frf_band(model: Model, joints: JointModel, frequency_hz: np.ndarray, damping
     if joints.names != model.joint_names:
         raise ValueError(f"joint model {joints.names} does not match the model's joints {model.joint_names}")
     if not np.any(joints.random):
-        raise ValueError("joints: no joint has a random modulus (every cov is 0); use frame_frf")
+        raise ValueError("joints: no joint has a random modulus (every cov is 0); use structure_frf")
     _damping(damping_ratio, 1)  # fail before any solve
     nominal = _summed_modes(model, float(f.max()), modes)
     zeta = _damping(damping_ratio, nominal.count)
-    reference = frame_frf(model, nominal, f, quantity, zeta)
+    reference = structure_frf(model, nominal, f, quantity, zeta)
     dofs = _dofs(model)
     gammas = joints.sample(samples, np.random.default_rng(seed))
     if method == "smr" and shared_eigenvalues(nominal, nominal.count):
@@ -232,16 +230,13 @@ def frf_band(model: Model, joints: JointModel, frequency_hz: np.ndarray, damping
                    samples=int(samples), seed=int(seed), method=method, check=check, **stats)
 
 
-def _dofs(model: Model) -> np.ndarray:
+def _dofs(model: Structure) -> np.ndarray:
     """The sensors' dofs, then the excitation's."""
-    frame = model.frame
-    if frame.excitation is None:  # frame_frf refuses it first; said again for the reader and mypy
-        raise ValueError(f"{frame.source}: the frame has no excitation: no FRF to band")
-    return np.array([model.dof(s.point, s.dof) for s in frame.sensors]
-                    + [model.dof(frame.excitation.point, frame.excitation.dof)])
+    sensors, excitation, _ = response_dofs(model)
+    return np.append(sensors, excitation)
 
 
-def _exact_draws(model: Model, nominal: Modes, gammas: np.ndarray, dofs: np.ndarray,
+def _exact_draws(model: Structure, nominal: Modes, gammas: np.ndarray, dofs: np.ndarray,
                  progress: Progress | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Natural frequencies (S, K), Hz, and modal constants (S, n_sensors, K), 1/kg, by exact solves."""
     count = nominal.count
@@ -258,7 +253,7 @@ def _exact_draws(model: Model, nominal: Modes, gammas: np.ndarray, dofs: np.ndar
     return natural, constants
 
 
-def _reduced_draws(model: Model, joints: JointModel, nominal: Modes, gammas: np.ndarray,
+def _reduced_draws(model: Structure, joints: JointModel, nominal: Modes, gammas: np.ndarray,
                    dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """As `_exact_draws`, by Rayleigh-Ritz on SMR2's basis (`workbench.uq.reduced`): no full solve per draw."""
     natural, shapes = reduced_modes(reduced_basis(model, nominal, joints), gammas, dofs)
@@ -318,7 +313,7 @@ def _statistics(f: np.ndarray, natural: np.ndarray, zeta: np.ndarray, constants:
     return stats
 
 
-def _check(model: Model, nominal: Modes, gammas: np.ndarray, dofs: np.ndarray, natural: np.ndarray,
+def _check(model: Structure, nominal: Modes, gammas: np.ndarray, dofs: np.ndarray, natural: np.ndarray,
            constants: np.ndarray, zeta: np.ndarray, f: np.ndarray, quantity: str) -> BandCheck:
     """The reduced basis against exact solves of the same draws, at the line nearest each summed mode."""
     exact_natural, exact_constants = _exact_draws(model, nominal, gammas, dofs)

@@ -33,8 +33,8 @@ import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment
 from threadpoolctl import threadpool_limits
 
-from workbench.model.assembly import Model, joint_energies
 from workbench.model.modal import Modes, shared_eigenvalues
+from workbench.model.structure import Structure, structure_energies
 from workbench.uq.smr import Sensitivities, eigenvector_derivatives
 from workbench.uq.stochastic import JointModel
 
@@ -69,7 +69,7 @@ class ReducedBasis:
         return int(self.basis.shape[1])
 
 
-def reduced_basis(model: Model, nominal: Modes, joints: JointModel, compress: bool | None = None) -> ReducedBasis:
+def reduced_basis(model: Structure, nominal: Modes, joints: JointModel, compress: bool | None = None) -> ReducedBasis:
     """SMR2's basis for ``nominal``: its modes and their sensitivities to the random joints (eq. 7).
 
     ``compress``: each mode's sensitivities compressed to their principal directions (module
@@ -83,7 +83,7 @@ def reduced_basis(model: Model, nominal: Modes, joints: JointModel, compress: bo
     if shared_eigenvalues(nominal, nominal.count):
         raise ValueError("reduced basis: nominal modes share an eigenvalue; Nelson's derivatives need "
                          "distinct ones (use exact solves)")
-    rest, per_joint = joint_energies(model, nominal.shapes)
+    rest, per_joint = structure_energies(model, nominal.shapes)
     sens = Sensitivities(nominal, rest, per_joint.T)
     random = np.flatnonzero(joints.random)
     if compress is None:
@@ -119,7 +119,7 @@ def _project(matrix, basis: np.ndarray) -> np.ndarray:
     return local.T @ (a[touched][:, touched] @ local)
 
 
-def _principal(model: Model, derivatives: np.ndarray, cov: np.ndarray) -> np.ndarray:
+def _principal(model: Structure, derivatives: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """The principal directions of one mode's first-order vector change (module docstring).
 
     Parameters

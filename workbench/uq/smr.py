@@ -48,8 +48,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.integrate import quad
 
-from workbench.model.assembly import Model, joint_energies
-from workbench.model.modal import Modes, model_modes, shared_eigenvalues
+from workbench.model.modal import Modes, shared_eigenvalues
+from workbench.model.structure import Structure, structure_energies, structure_modes
 from workbench.progress import Progress
 from workbench.tasks import Mapper
 from workbench.uq.degenerate import cluster_moments, describe
@@ -105,15 +105,15 @@ class Sensitivities:
                              "adaptive and Pert2 move the model there with workbench.model.joints.model_at_moduli")
 
 
-def sensitivities(model: Model, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
+def sensitivities(model: Structure, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
     """Nominal modes of ``model`` (joints at ``gamma``, default their means) and ``lambda_kj`` (eq. 5).
 
     With ``gamma``, ``lambda_kj`` is relative to that point: right for SMR1, which needs only the
     nominal solve there. SMR2, adaptive and Pert2 refuse such sensitivities; give them the model
     moved to that point instead (`workbench.model.joints.model_at_moduli`).
     """
-    modes = model_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
-    rest, joints = joint_energies(model, modes.shapes)
+    modes = structure_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
+    rest, joints = structure_energies(model, modes.shapes)
     if gamma is not None:
         joints = joints * np.asarray(gamma, float)[:, None]
     return Sensitivities(modes, rest, joints.T, None if gamma is None else np.asarray(gamma, float))
@@ -208,12 +208,12 @@ def dispersion(sens: Sensitivities, joints: JointModel) -> np.ndarray:
     return np.where(total > 0, d, 0.0)
 
 
-def _check(model: Model, joints: JointModel) -> None:
+def _check(model: Structure, joints: JointModel) -> None:
     if joints.names != model.joint_names:
         raise ValueError(f"joint model {joints.names} does not match the model's joints {model.joint_names}")
 
 
-def smr1(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
+def smr1(model: Structure, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
     """SMR1 (eq. 5): frequency moments with the nominal eigenvectors, exact for that model.
 
     Parameters
@@ -251,7 +251,7 @@ def smr1(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities 
                                     dispersion=dispersion(sens, joints)[:count]))
 
 
-def _on_clusters(model: Model, joints: JointModel, sens: Sensitivities, count: int, mean: np.ndarray,
+def _on_clusters(model: Structure, joints: JointModel, sens: Sensitivities, count: int, mean: np.ndarray,
                  std: np.ndarray, seed: int = 0) -> np.ndarray:
     """Overwrite, in place, the moments of modes sharing an eigenvalue with SMR on their subspace
     (`workbench.uq.degenerate`); returns the mask of those modes among the first ``count``.
@@ -274,7 +274,7 @@ def _finite(result: FrequencyMoments) -> FrequencyMoments:
     return result
 
 
-def eigenvector_derivatives(model: Model, sens: Sensitivities, modes: np.ndarray,
+def eigenvector_derivatives(model: Structure, sens: Sensitivities, modes: np.ndarray,
                             joint_index: np.ndarray) -> np.ndarray:
     """Nelson's eigenvector derivatives ``dphi_k / dgamma_j`` at the nominal point.
 
@@ -310,7 +310,7 @@ def eigenvector_derivatives(model: Model, sens: Sensitivities, modes: np.ndarray
     return out
 
 
-def smr2_frequencies(model: Model, sens: Sensitivities, modes: np.ndarray, gammas: np.ndarray,
+def smr2_frequencies(model: Structure, sens: Sensitivities, modes: np.ndarray, gammas: np.ndarray,
                      varying: np.ndarray | None = None, rayleigh: bool = True) -> np.ndarray:
     """SMR2 eigenfrequencies (eq. 6-7) at given joint scales: (n_points, len(modes)) Hz.
 
@@ -330,7 +330,7 @@ def smr2_frequencies(model: Model, sens: Sensitivities, modes: np.ndarray, gamma
         basis = np.concatenate([sens.modes.shapes[:, [k]], derivatives[row]], axis=1)  # (n, 1 + r)
         b = basis.shape[1]
         # reduced matrices from element energies: no cancellation (see assembly.element_energies)
-        rest, per_joint = joint_energies(model, np.repeat(basis, b, axis=1), np.tile(basis, (1, b)))
+        rest, per_joint = structure_energies(model, np.repeat(basis, b, axis=1), np.tile(basis, (1, b)))
         stiff = rest.reshape(b, b)[None] + np.einsum("gj,jab->gab", gammas, per_joint.reshape(-1, b, b))
         numerator = np.einsum("ga,gab,gb->g", coeff, stiff, coeff)
         if rayleigh:
@@ -339,7 +339,7 @@ def smr2_frequencies(model: Model, sens: Sensitivities, modes: np.ndarray, gamma
     return out
 
 
-def _smr2_modes(model: Model, joints: JointModel, sens: Sensitivities, modes: np.ndarray, rayleigh: bool,
+def _smr2_modes(model: Structure, joints: JointModel, sens: Sensitivities, modes: np.ndarray, rayleigh: bool,
                 seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Frequency mean and std of the given modes by SMR2 (eq. 6-7) over the joint law."""
     r = np.flatnonzero(joints.random)
@@ -352,7 +352,7 @@ def _smr2_modes(model: Model, joints: JointModel, sens: Sensitivities, modes: np
     return mean, np.sqrt(weights @ (f - mean) ** 2)
 
 
-def smr2(model: Model, joints: JointModel, count: int = 10, rayleigh: bool = True, seed: int = 0,
+def smr2(model: Structure, joints: JointModel, count: int = 10, rayleigh: bool = True, seed: int = 0,
          sens: Sensitivities | None = None) -> FrequencyMoments:
     """SMR2 (eq. 6-7) on every mode: first-order eigenvectors, eigenvalue as a Rayleigh quotient.
 
@@ -371,7 +371,7 @@ def smr2(model: Model, joints: JointModel, count: int = 10, rayleigh: bool = Tru
                                     dispersion=dispersion(sens, joints)[:count], refined=~shared))
 
 
-def adaptive(model: Model, joints: JointModel, count: int = 10, proximity_threshold: float = PROXIMITY_THRESHOLD,
+def adaptive(model: Structure, joints: JointModel, count: int = 10, proximity_threshold: float = PROXIMITY_THRESHOLD,
              dispersion_threshold: float = DISPERSION_THRESHOLD, seed: int = 0,
              sens: Sensitivities | None = None) -> FrequencyMoments:
     """The strategy of Figure 10: SMR1 on all modes, then SMR2 where ``PF_k < proximity_threshold``
@@ -393,7 +393,7 @@ def adaptive(model: Model, joints: JointModel, count: int = 10, proximity_thresh
                                     dispersion=first.dispersion, refined=refined))
 
 
-def pert2(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
+def pert2(model: Structure, joints: JointModel, count: int = 10, sens: Sensitivities | None = None) -> FrequencyMoments:
     """Second-order perturbation: mean to second order, variance to first order, of the frequencies.
 
     With ``f = sqrt(lambda) / 2 pi``, ``df/dgamma_j = lambda_kj / (4 pi sqrt(lambda))`` and
@@ -431,7 +431,7 @@ def pert2(model: Model, joints: JointModel, count: int = 10, sens: Sensitivities
 METHODS = ("smr1", "smr2", "adaptive", "pert2", "mc")
 
 
-def propagate(model: Model, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
+def propagate(model: Structure, joints: JointModel, method: str, count: int = 10, samples: int = 10_000, seed: int = 0,
               mapper: Mapper | None = None, progress: Progress | None = None) -> FrequencyMoments:
     """Frequency moments by ``method`` (one of `METHODS`); ``samples``, ``mapper`` and ``progress`` are for ``mc``.
 

@@ -18,8 +18,8 @@ import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
 from threadpoolctl import threadpool_limits
 
-from workbench.model.assembly import Model
-from workbench.model.modal import Modes, model_modes, shared_eigenvalues, solve_modes
+from workbench.model.modal import Modes, shared_eigenvalues, solve_modes
+from workbench.model.structure import Structure, structure_modes
 from workbench.progress import Progress
 from workbench.tasks import Mapper, serial_mapper
 
@@ -209,7 +209,7 @@ def track_modes(nominal: Modes, candidates: Modes, mass) -> tuple[np.ndarray, np
     return index, cross[rows, cols][np.argsort(rows)]
 
 
-def tracked_frequencies(model: Model, nominal: Modes, gammas: np.ndarray,
+def tracked_frequencies(model: Structure, nominal: Modes, gammas: np.ndarray,
                         extra_modes: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """Exact eigenfrequencies for each row of ``gammas``, modes tracked against ``nominal`` by MAC.
 
@@ -249,7 +249,7 @@ def _chunk(shared: tuple, task: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarr
         return (gammas, *tracked_frequencies(model, nominal, gammas, extra_modes))
 
 
-def quadrature_reference(model: Model, joints: JointModel, count: int = 10,
+def quadrature_reference(model: Structure, joints: JointModel, count: int = 10,
                          points: int = GAUSS_POINTS) -> FrequencyMoments:
     """Exact frequency moments by a tensor Gauss rule over exact eigen-solves (no sampling noise).
 
@@ -269,21 +269,21 @@ def quadrature_reference(model: Model, joints: JointModel, count: int = 10,
         wgrid = np.meshgrid(*[w for _, w in rules], indexing="ij")
         gamma[:, r] = np.stack([g.ravel() for g in grids], axis=1)
         weights = np.prod(np.stack([w.ravel() for w in wgrid], axis=1), axis=1)
-    nominal = model_modes(model, count)
+    nominal = structure_modes(model, count)
     freqs, _ = tracked_frequencies(model, nominal, gamma)
     mean = weights @ freqs
     std = np.sqrt(weights @ (freqs - mean) ** 2)
     return FrequencyMoments(mean, std, f"quadrature-{points}", nominal.frequency_hz)
 
 
-def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int = 10_000, seed: int = 0,
+def monte_carlo(model: Structure, joints: JointModel, count: int = 10, samples: int = 10_000, seed: int = 0,
                 mapper: Mapper | None = None, progress: Progress | None = None, extra_modes: int = 4,
                 chunk: int = 100) -> MonteCarloResult:
     """Monte Carlo moments of the first ``count`` eigenfrequencies: one exact eigen-solve per sample.
 
     Parameters
     ----------
-    model : assembled `workbench.model.assembly.Model`.
+    model : an assembled frame or a matrix model (`workbench.model.structure`).
     joints : the joint model (one law per joint of the model).
     count : modes to track (the nominal model's first ``count``).
     samples : number of joint draws.
@@ -303,7 +303,7 @@ def monte_carlo(model: Model, joints: JointModel, count: int = 10, samples: int 
         raise ValueError(f"joint model {joints.names} does not match the model's joints {model.joint_names}")
     if samples < 2:
         raise ValueError(f"samples: need at least 2, got {samples}")
-    nominal = model_modes(model, count)
+    nominal = structure_modes(model, count)
     # task i draws from the i-th stream spawned from the seed: the numbers depend on the seed and the
     # chunk size only, never on which worker ran which task, nor on how many there were
     sizes = [min(chunk, samples - start) for start in range(0, samples, chunk)]
