@@ -24,9 +24,9 @@ from workbench.identify.record import bound_failures, identification_record
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
-from workbench.model.matrix_file import is_matrix_model, read_matrix_model
+from workbench.model.matrix_file import is_matrix_model, model_files, read_matrix_model
 from workbench.model.matrix_model import MatrixModel
-from workbench.model.structure import Structure, structure_modes
+from workbench.model.structure import Structure, structure_modes, structure_of
 from workbench.progress import Progress
 from workbench.report.tables import declared_files
 from workbench.uq.limits import smr1_cov_warning
@@ -129,6 +129,17 @@ def _import(args: argparse.Namespace, out: OutputSet) -> str:
             f"{campaign.name!r} into {args.out}")
 
 
+def _import_writes(args: argparse.Namespace) -> tuple[str, ...]:
+    """The campaign's files; with a matrix model, its model.toml and the files it names instead of frame.toml."""
+    names = ("campaign.toml", "design.csv", "frf.csv")
+    try:
+        if is_matrix_model(args.frame):
+            return names + ("model.toml", *model_files(args.frame))
+    except (OSError, ValueError, KeyError, TypeError):
+        pass  # a broken model is reported by its reader, with the file and the key
+    return names + ("frame.toml",)
+
+
 def _extract(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.io.campaign import load_campaign
     from workbench.workflow.measured import (
@@ -167,7 +178,7 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
     if args.method == "bayes" and not data.has_tests:
         raise ValueError(f"{args.campaign}: bayes needs every test's frequencies (modes.csv or FRFs); this "
                          "campaign has only published moments (moments.csv): use --method moments")
-    model = assemble(campaign.frame)
+    model = structure_of(campaign.frame)
     data = pair_by_mac(model, data)  # with measured shapes, mode i is the model mode of its shape, not the i-th
     start = time.perf_counter()
     files: dict[str, str | bytes] = {}
@@ -266,7 +277,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    def command(name: str, description: str, run, writes: tuple[str, ...]) -> argparse.ArgumentParser:
+    def command(name: str, description: str, run, writes) -> argparse.ArgumentParser:
         # every command writes one output set under --out (CONTRACTS.md section 3), replaced only with --force
         p = sub.add_parser(name, help=description)
         p.add_argument("--out", required=True, help="output directory (created if absent; never an input's)")
@@ -280,11 +291,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--count", type=_positive_int, default=10, help="number of modes (default 10)")
 
     p = command("import", "a new campaign from UFF 58/58b or tidy CSV files as test software exports them", _import,
-                ("campaign.toml", "frame.toml", "design.csv", "frf.csv"))
+                _import_writes)
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="universal files (.uff, .unv, .uf: one test per file, or per test id in our headers) or "
                         "tidy CSV (sensor, frequency_hz, real, imag, optional test_id)")
-    p.add_argument("--frame", required=True, help="the tested article's frame.toml, copied into the campaign")
+    p.add_argument("--frame", required=True, help="the tested article's frame.toml, or a matrix model.toml with its "
+                   "files, copied into the campaign")
     p.add_argument("--design", help="design CSV: test_id and one column per factor (default: one factor 'test')")
     p.add_argument("--name", help="the campaign's name (default: from the first file)")
     p.add_argument("--quantity", choices=["receptance", "mobility", "accelerance"],
@@ -386,7 +398,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
             try:
-                with claim_output(args.out, command=args.command, names=args.writes,
+                names = args.writes(args) if callable(args.writes) else args.writes
+                with claim_output(args.out, command=args.command, names=names,
                                   force=args.force or args.command == "demo", inputs=_inputs(args)) as out:
                     message = args.run(args, out)
             finally:  # warnings first, one line each, also when the command then fails

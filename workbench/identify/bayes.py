@@ -39,7 +39,7 @@ from scipy.optimize import minimize
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values, check_moments, joint_groups
 from workbench.identify.likelihood import COV_BOUNDS, MODULUS_BOUNDS_PA, SIGMA_BOUNDS, LikelihoodModel, likelihood_model
-from workbench.model.assembly import Model
+from workbench.model.structure import Structure
 from workbench.progress import Progress, report
 
 __all__ = ["Posterior", "run_ensemble", "bayes_identify", "load_arviz"]
@@ -259,7 +259,7 @@ def _inference_data(samples: dict[str, np.ndarray], lp: np.ndarray, measured: Me
     return idata
 
 
-def bayes_identify(model: Model, measured: MeasuredModes, groups: JointGroups | None = None, *,
+def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None, *,
                    start: Values | None = None, walkers: int | None = None, steps: int = 3000, burn: int = 500,
                    seed: int = 0, forward: str = "exact", progress: Progress | None = None) -> Posterior:
     """Bayesian identification of each joint group's mean modulus and CoV from every test (module notes).
@@ -285,7 +285,7 @@ def bayes_identify(model: Model, measured: MeasuredModes, groups: JointGroups | 
     t0 = time.perf_counter()
     check_moments(measured)
     lm, forward_error = likelihood_model(model, measured, groups, start, forward)  # refuses published moments
-    groups = groups or joint_groups(model.frame)
+    groups = groups or joint_groups(model)
     ndim = lm.ndim
     walkers = walkers or max(32, 4 * ndim)
     walkers += walkers % 2

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.extraction.records import MeasuredModes
-from workbench.model.assembly import Model
-from workbench.model.frame import Frame
+from workbench.model.frame import Frame, Joint
+from workbench.model.matrix_model import MatrixJoint
+from workbench.model.structure import Structure
 
 __all__ = ["Values", "JointGroups", "joint_groups", "check_moments", "resolve_groups", "per_group", "check_box",
            "check_modes"]
@@ -48,7 +49,7 @@ class JointGroups:
         return out
 
 
-def joint_groups(frame: Frame) -> JointGroups:
+def joint_groups(frame: Frame | Structure) -> JointGroups:
     """The frame's joint groups; joints of one group must have the same file modulus.
 
     Raises
@@ -56,18 +57,19 @@ def joint_groups(frame: Frame) -> JointGroups:
     ValueError
         A frame without joints, or a group whose joints disagree on their mean modulus.
     """
-    if not frame.joints:
+    joints: Sequence[Joint | MatrixJoint] = frame.joints
+    if not joints:
         raise ValueError(f"{frame.source}: joints: the frame has no joint to identify")
     order: list[str] = []
     members: dict[str, list[int]] = {}
-    for i, joint in enumerate(frame.joints):
+    for i, joint in enumerate(joints):
         if joint.group not in members:
             order.append(joint.group)
             members[joint.group] = []
         members[joint.group].append(i)
     nominal = []
     for g in order:
-        moduli = {frame.joints[i].youngs_modulus for i in members[g]}
+        moduli = {joints[i].youngs_modulus for i in members[g]}
         if len(moduli) > 1:
             raise ValueError(f"{frame.source}: joints: group {g!r} mixes mean moduli {sorted(moduli)}")
         nominal.append(moduli.pop())
@@ -104,12 +106,12 @@ def check_moments(measured: MeasuredModes) -> None:
         raise ValueError(f"{source}: moments must be positive means and non-negative deviations")
 
 
-def resolve_groups(model: Model, groups: JointGroups | None) -> JointGroups:
+def resolve_groups(model: Structure, groups: JointGroups | None) -> JointGroups:
     """``groups``, or the frame's own; each of the frame's joints must be in exactly one group."""
-    if not model.frame.joints:
-        raise ValueError(f"{model.frame.source}: joints: the frame has no joint to identify")
-    groups = groups if groups is not None else joint_groups(model.frame)
-    n = len(model.frame.joints)
+    if not model.joints:
+        raise ValueError(f"{model.source}: joints: the frame has no joint to identify")
+    groups = groups if groups is not None else joint_groups(model)
+    n = len(model.joints)
     if sorted(j for members in groups.members for j in members) != list(range(n)):
         raise ValueError(f"groups: {groups.members} must hold each of the frame's {n} joints once")
     return groups
@@ -131,7 +133,7 @@ def check_box(name: str, bounds: tuple[float, float]) -> tuple[float, float]:
     return lo, hi
 
 
-def check_modes(model: Model, measured: MeasuredModes) -> np.ndarray:
+def check_modes(model: Structure, measured: MeasuredModes) -> np.ndarray:
     """``measured.modes`` as distinct integer model mode numbers (1 = lowest) that ``model`` can solve."""
     modes = np.asarray(measured.modes)
     if modes.size == 0 or not np.all(np.equal(np.mod(modes, 1), 0)) or np.any(modes < 1):

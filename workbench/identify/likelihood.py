@@ -66,8 +66,7 @@ from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values, check_moments, joint_groups
 from workbench.identify.nominal import reference_fit
 from workbench.identify.surrogate import ForwardTable, forward_table, frequencies_at
-from workbench.model.assembly import Model
-from workbench.model.joints import model_at_moduli
+from workbench.model.structure import Structure, structure_at_moduli
 
 __all__ = ["MODULUS_BOUNDS_PA", "COV_BOUNDS", "SIGMA_BOUNDS", "GH_POINTS", "gamma_log_density", "LikelihoodModel",
            "likelihood_model"]
@@ -237,7 +236,7 @@ def _gauss_hermite(r: int) -> tuple[np.ndarray, np.ndarray]:
     return nodes, log_w
 
 
-def likelihood_model(model: Model, measured: MeasuredModes, groups: JointGroups | None = None,
+def likelihood_model(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
                      start: Values | None = None, forward: str = "exact") -> tuple[LikelihoodModel, float]:
     """The `LikelihoodModel` of a campaign: reference fit, forward table, Newton starts.
 
@@ -264,7 +263,7 @@ def likelihood_model(model: Model, measured: MeasuredModes, groups: JointGroups 
     if measured.published:
         raise ValueError(f"{measured.source or 'campaign'}: bayes needs every test's frequencies (modes.csv or FRFs); "
                          "this campaign has only published moments (moments.csv)")
-    groups = groups or joint_groups(model.frame)
+    groups = groups or joint_groups(model)
     start_pa = np.asarray(start if start is not None else groups.nominal_pa, float)
     if start_pa.shape != (len(groups.groups),) or np.any(start_pa <= 0):
         raise ValueError(f"start: expected {len(groups.groups)} positive moduli (one per group "
@@ -288,7 +287,7 @@ def likelihood_model(model: Model, measured: MeasuredModes, groups: JointGroups 
     # interpolation check between the nodes
     fractions = np.array([0.07, 0.29, 0.537, 0.71, 0.93])
     probe = lower + (upper - lower) * np.stack([fractions, fractions[::-1]][:n_joints], axis=1)
-    truth = frequencies_at(model_at_moduli(model, y0), modes, np.exp(probe), forward)
+    truth = frequencies_at(structure_at_moduli(model, y0), modes, np.exp(probe), forward)
     forward_error = float(np.max(np.abs(table(probe) / truth - 1.0)))
     z_start = _test_estimates(table, f_obs, mask)
     lm = LikelihoodModel(table, f_obs, mask, np.asarray(measured.mean_hz, float), joint_group, ref_pa, z_start)

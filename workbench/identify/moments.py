@@ -35,8 +35,7 @@ from scipy.optimize import least_squares, nnls
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values, check_box, check_moments, per_group, resolve_groups
 from workbench.identify.nominal import NominalFit, nominal_fit
-from workbench.model.assembly import Model
-from workbench.model.joints import model_at_moduli
+from workbench.model.structure import Structure, structure_at_moduli
 from workbench.uq import smr
 from workbench.uq.limits import COV_LIMIT
 from workbench.uq.stochastic import FrequencyMoments, JointModel
@@ -110,15 +109,15 @@ class MomentFit:
 class _SMRForward:
     """``(log mean, log cov) -> (mean_hz, std_hz)`` of the paired model modes by the SMR; counts its calls."""
 
-    def __init__(self, model: Model, groups: JointGroups, model_modes: np.ndarray, method: str) -> None:
+    def __init__(self, model: Structure, groups: JointGroups, model_modes: np.ndarray, method: str) -> None:
         self.model, self.groups, self.model_modes = model, groups, model_modes
         self.propagate = METHODS[method]
         self.calls = 0
 
     def __call__(self, log_mean: np.ndarray, log_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         self.calls += 1
-        n_joints = len(self.model.frame.joints)
-        at = model_at_moduli(self.model, self.groups.per_joint(np.exp(log_mean), n_joints))
+        n_joints = len(self.model.joints)
+        at = structure_at_moduli(self.model, self.groups.per_joint(np.exp(log_mean), n_joints))
         joints = JointModel(self.model.joint_names, self.groups.per_joint(np.exp(log_cov), n_joints))
         moments = self.propagate(at, joints, int(self.model_modes.max()))
         return moments.mean_hz[self.model_modes - 1], moments.std_hz[self.model_modes - 1]
@@ -148,10 +147,10 @@ def cov_residuals(forward: Forward, target_delta: np.ndarray, log_mean: np.ndarr
     return (target_delta - std / mean) / math.sqrt(float(target_delta @ target_delta))
 
 
-def _linear_cov_start(model: Model, groups: JointGroups, mean_pa: np.ndarray, model_modes: np.ndarray,
+def _linear_cov_start(model: Structure, groups: JointGroups, mean_pa: np.ndarray, model_modes: np.ndarray,
                       delta: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """First-order CoVs: ``delta_k^2 = sum_g cov_g^2 sum_(j in g) (lambda_kj / 2 lambda_k)^2``, by NNLS."""
-    at = model_at_moduli(model, groups.per_joint(mean_pa, len(model.frame.joints)))
+    at = structure_at_moduli(model, groups.per_joint(mean_pa, len(model.joints)))
     sens = smr.sensitivities(at, int(model_modes.max()))
     k = model_modes - 1
     share = (sens.joints[k] / (2.0 * sens.modes.eigenvalues[k, None])) ** 2  # (n_modes, n_joints)
@@ -225,7 +224,7 @@ def _least_squares(residuals: Callable[[np.ndarray], np.ndarray], x0: np.ndarray
     return np.clip(result.x, lo, hi)
 
 
-def _two_steps(model: Model, groups: JointGroups, forward: _SMRForward, measured_mean: np.ndarray,
+def _two_steps(model: Structure, groups: JointGroups, forward: _SMRForward, measured_mean: np.ndarray,
                measured_delta: np.ndarray, log_mean: np.ndarray, log_cov: np.ndarray,
                bounds: tuple[tuple[float, float], tuple[float, float]],
                sweeps: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
@@ -255,7 +254,7 @@ def _two_steps(model: Model, groups: JointGroups, forward: _SMRForward, measured
     return log_mean, log_cov, done, converged and done > 1
 
 
-def moment_matching(model: Model, measured: MeasuredModes, groups: JointGroups | None = None,
+def moment_matching(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
                     start: tuple[Values | None, Values | None] | None = None,
                     bounds_pa: tuple[float, float] = (1e8, 1e12), cov_bounds: tuple[float, float] = (1e-3, COV_LIMIT),
                     method: str = "adaptive", sweeps: int = 10,

@@ -40,9 +40,9 @@ from workbench.identify.data import (
     per_group,
     resolve_groups,
 )
-from workbench.model.assembly import Model
 from workbench.model.joints import joint_scale
-from workbench.model.modal import mac, model_modes
+from workbench.model.modal import mac
+from workbench.model.structure import Structure, sensor_dofs, structure_modes
 from workbench.uq.smr import sensitivities
 
 __all__ = ["SCAN_POINTS", "NominalFit", "eq1_residual", "nominal_fit", "reference_fit"]
@@ -94,12 +94,6 @@ class NominalFit:
     wall_time_s: float
 
 
-def _sensor_dofs(model: Model) -> np.ndarray:
-    if not model.frame.sensors:
-        raise ValueError(f"{model.frame.source}: sensors: MAC pairing needs sensors in the frame")
-    return np.array([model.dof(s.point, s.dof) for s in model.frame.sensors])
-
-
 def _scan_then_simplex(objective: Callable[[np.ndarray], float], x0: np.ndarray, lo: float, hi: float,
                        points: int, step: float, xatol: float, fatol: float) -> tuple[np.ndarray, int]:
     """Coarse grid over [lo, hi] one coordinate at a time (two passes), then bounded Nelder-Mead."""
@@ -124,14 +118,14 @@ def _scan_then_simplex(objective: Callable[[np.ndarray], float], x0: np.ndarray,
     return np.clip(result.x, lo, hi), int(result.nit)
 
 
-def _pairing(model: Model, modes: np.ndarray, pairing: str,
+def _pairing(model: Structure, modes: np.ndarray, pairing: str,
              measured_shapes: np.ndarray | None) -> tuple[int, np.ndarray | None, np.ndarray | None]:
     """Model modes to solve, sensor dofs and measured shapes of the pairing (None, None by order)."""
     if pairing == "order":
         return int(modes.max()), None, None
     if pairing != "mac":
         raise ValueError(f"pairing: {pairing!r} is not one of order, mac")
-    dofs = _sensor_dofs(model)
+    dofs = sensor_dofs(model)
     if measured_shapes is None:
         raise ValueError("measured_shapes: MAC pairing needs the measured shapes (n_sensors, n_modes)")
     shapes = np.asarray(measured_shapes)
@@ -141,7 +135,7 @@ def _pairing(model: Model, modes: np.ndarray, pairing: str,
     return min(int(modes.max()) + EXTRA_MODES, model.size - 2), dofs, shapes
 
 
-def nominal_fit(model: Model, measured: MeasuredModes, groups: JointGroups | None = None,
+def nominal_fit(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
                 start_pa: Values | None = None, bounds_pa: tuple[float, float] = (1e8, 1e12),
                 pairing: str = "order", measured_shapes: np.ndarray | None = None,
                 scan_points: int = SCAN_POINTS) -> NominalFit:
@@ -173,7 +167,7 @@ def nominal_fit(model: Model, measured: MeasuredModes, groups: JointGroups | Non
     start_time = time.perf_counter()
     check_moments(measured)
     groups = resolve_groups(model, groups)
-    n_groups, n_joints = len(groups.groups), len(model.frame.joints)
+    n_groups, n_joints = len(groups.groups), len(model.joints)
     lo, hi = check_box("bounds_pa", bounds_pa)
     start = np.array(groups.nominal_pa) if start_pa is None else per_group("start_pa", start_pa, n_groups)
     modes = check_modes(model, measured)
@@ -183,7 +177,7 @@ def nominal_fit(model: Model, measured: MeasuredModes, groups: JointGroups | Non
 
     def evaluate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         calls[0] += 1
-        solved = model_modes(model, count, joint_scale(model.frame, groups.per_joint(np.exp(x), n_joints)))
+        solved = structure_modes(model, count, joint_scale(model, groups.per_joint(np.exp(x), n_joints)))
         if shapes is None:
             return solved.frequency_hz[modes - 1], modes, None
         table = mac(shapes, solved.shapes[dofs])
@@ -207,7 +201,7 @@ def nominal_fit(model: Model, measured: MeasuredModes, groups: JointGroups | Non
                       iterations, calls[0], time.perf_counter() - start_time)
 
 
-def reference_fit(model: Model, measured: MeasuredModes, groups: JointGroups, start_pa: Values,
+def reference_fit(model: Structure, measured: MeasuredModes, groups: JointGroups, start_pa: Values,
                   iterations: int = 30) -> np.ndarray:
     """Group moduli whose model frequencies best match the test means (eq. 1 in log frequency).
 
@@ -225,7 +219,7 @@ def reference_fit(model: Model, measured: MeasuredModes, groups: JointGroups, st
     n_joints = len(model.joint_names)
     log_e = np.log(np.asarray(start_pa, float))
     for _ in range(iterations):
-        gamma = joint_scale(model.frame, groups.per_joint(np.exp(log_e), n_joints))
+        gamma = joint_scale(model, groups.per_joint(np.exp(log_e), n_joints))
         sens = sensitivities(model, count, gamma)
         lam = sens.modes.eigenvalues[modes]
         jac = sens.joints[modes] / (2.0 * lam[:, None])

@@ -18,8 +18,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from workbench.extraction.records import MeasuredModes
-from workbench.model.assembly import Model
-from workbench.model.modal import mac, model_modes
+from workbench.model.modal import mac
+from workbench.model.structure import Structure, excitation_dof, sensor_dofs, structure_modes
 
 __all__ = ["MIN_PAIR_MAC", "EXTRA_CANDIDATES", "FREQUENCY_WINDOW", "mean_mac", "pair_by_mac"]
 
@@ -51,7 +51,7 @@ def mean_mac(measured: MeasuredModes, model_constants: np.ndarray) -> np.ndarray
         return table / counts[:, None]
 
 
-def pair_by_mac(model: Model, measured: MeasuredModes, min_mac: float = MIN_PAIR_MAC) -> MeasuredModes:
+def pair_by_mac(model: Structure, measured: MeasuredModes, min_mac: float = MIN_PAIR_MAC) -> MeasuredModes:
     """``measured`` with ``modes`` set to the model modes of the same shape (MAC), one to one.
 
     Unchanged when it holds no modal constants. The model's modes are those of its file (joints at
@@ -65,13 +65,12 @@ def pair_by_mac(model: Model, measured: MeasuredModes, min_mac: float = MIN_PAIR
     """
     if measured.modal_constants is None:
         return measured
-    frame = model.frame
-    if frame.excitation is None:
+    drive = excitation_dof(model)
+    if drive is None:
         return measured
     count = min(int(np.max(measured.modes)) + EXTRA_CANDIDATES, model.size - 2)
-    modes = model_modes(model, count)
-    sensors = np.array([model.dof(s.point, s.dof) for s in frame.sensors])
-    drive = model.dof(frame.excitation.point, frame.excitation.dof)
+    modes = structure_modes(model, count)
+    sensors = sensor_dofs(model)
     table = mean_mac(measured, modes.shapes[sensors] * modes.shapes[drive])
     near = np.abs(modes.frequency_hz[None, :] / np.asarray(measured.mean_hz)[:, None] - 1.0) <= FREQUENCY_WINDOW
     table = np.where(near, table, 0.0)
@@ -84,7 +83,7 @@ def pair_by_mac(model: Model, measured: MeasuredModes, min_mac: float = MIN_PAIR
         if table[i, j] < min_mac:
             raise ValueError(
                 f"{measured.source}: measured mode {i + 1} ({measured.mean_hz[i]:.1f} Hz) pairs with no mode of "
-                f"{frame.source} within {100 * FREQUENCY_WINDOW:.0f} % in frequency: its best MAC there is "
+                f"{model.source} within {100 * FREQUENCY_WINDOW:.0f} % in frequency: its best MAC there is "
                 f"{table[i].max():.2f}, under {min_mac}; check the sensors' names and directions, or give "
                 "modes.csv with the model's mode numbers")
         paired[i] = j + 1

@@ -6,6 +6,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from workbench.model.frame import Frame
+from workbench.model.matrix_model import MatrixModel
 
 __all__ = ["BOUND_TOLERANCE", "identification_record", "bound_failures"]
 
@@ -13,8 +14,8 @@ __all__ = ["BOUND_TOLERANCE", "identification_record", "bound_failures"]
 BOUND_TOLERANCE = 0.01
 
 
-def identification_record(campaign_name: str, method: str, frame: Frame, fit: Any, modes_used: Iterable[int],
-                          wall_time_s: float) -> dict:
+def identification_record(campaign_name: str, method: str, frame: Frame | MatrixModel, fit: Any,
+                          modes_used: Iterable[int], wall_time_s: float) -> dict:
     """The ``identification.json`` structure of CONTRACTS.md section 3.
 
     ``fit`` either has ``joint_records()`` (the ``joints`` block itself, e.g. a Bayesian
@@ -44,9 +45,9 @@ def identification_record(campaign_name: str, method: str, frame: Frame, fit: An
             return None if ci is None else [float(ci[g][0]), float(ci[g][1])]
 
         group_of = {j: g for g, members in enumerate(groups.members) for j in members}
-        joints = {joint.name: {"youngs_modulus": float(fit.mean_pa[group_of[j]]), "cov": float(fit.cov[group_of[j]]),
+        joints = {name: {"youngs_modulus": float(fit.mean_pa[group_of[j]]), "cov": float(fit.cov[group_of[j]]),
                                "youngs_modulus_ci95": pair(mean_ci, group_of[j]), "cov_ci95": pair(cov_ci, group_of[j])}
-                  for j, joint in enumerate(frame.joints) if j in group_of}
+                  for j, name in enumerate(frame.joint_names) if j in group_of}
     if list(joints) != list(frame.joint_names):
         raise ValueError(f"{frame.source}: the fit's joints {list(joints)} are not the frame's "
                          f"{list(frame.joint_names)}")

@@ -15,9 +15,7 @@ from typing import Literal, overload
 
 import numpy as np
 
-from workbench.model.assembly import Model
-from workbench.model.joints import model_at_moduli
-from workbench.model.modal import model_modes
+from workbench.model.structure import Structure, structure_at_moduli, structure_modes
 from workbench.uq.smr import sensitivities, smr2_frequencies
 from workbench.uq.stochastic import tracked_frequencies
 
@@ -107,7 +105,7 @@ class ForwardTable:
         raise ValueError(f"ForwardTable: {r} random joints; the table handles 1 or 2")
 
 
-def frequencies_at(model0: Model, modes: np.ndarray, gammas: np.ndarray, source: str = "exact") -> np.ndarray:
+def frequencies_at(model0: Structure, modes: np.ndarray, gammas: np.ndarray, source: str = "exact") -> np.ndarray:
     """Eigenfrequencies (n_points, len(modes)) Hz of ``model0``'s modes (0-based) at joint scales ``gammas``.
 
     ``source`` "exact": eigen-solutions tracked by MAC against ``model0``'s modes; "smr2": the
@@ -116,13 +114,13 @@ def frequencies_at(model0: Model, modes: np.ndarray, gammas: np.ndarray, source:
     modes = np.asarray(modes, int)
     count = int(modes.max()) + 1
     if source == "exact":
-        return tracked_frequencies(model0, model_modes(model0, count), gammas)[0][:, modes]
+        return tracked_frequencies(model0, structure_modes(model0, count), gammas)[0][:, modes]
     if source == "smr2":
         return smr2_frequencies(model0, sensitivities(model0, count), modes, gammas)
     raise ValueError(f"forward: {source!r} is not 'exact' or 'smr2'")
 
 
-def forward_table(model: Model, modes: np.ndarray, reference_pa: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+def forward_table(model: Structure, modes: np.ndarray, reference_pa: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                   degree: int | None = None, source: str = "exact") -> ForwardTable:
     """Build a `ForwardTable` of ``model``'s modes (0-based indices at ``reference_pa``).
 
@@ -148,7 +146,7 @@ def forward_table(model: Model, modes: np.ndarray, reference_pa: np.ndarray, low
     z_nodes = 0.5 * (upper + lower)[:, None] + 0.5 * (upper - lower)[:, None] * x[None, :]  # (r, n)
     grids = np.meshgrid(*z_nodes, indexing="ij")
     z = np.stack([g.ravel() for g in grids], axis=1)  # (n^r, r)
-    f = frequencies_at(model_at_moduli(model, reference_pa), modes, np.exp(z), source)
+    f = frequencies_at(structure_at_moduli(model, reference_pa), modes, np.exp(z), source)
     t = _cheb(x, degree)  # (n, n): t[i, a] = T_a(x_i)
     scale = np.full(n, 2.0 / n)
     scale[0] = 1.0 / n

@@ -34,6 +34,9 @@ from workbench.io.campaign_checks import (
 from workbench.io.outputs import write_outputs
 from workbench.model.frame import Frame, FrameFileError
 from workbench.model.frame_file import frame_to_toml, read_frame, toml_string
+from workbench.model.matrix_file import is_matrix_model, model_files, read_matrix_model
+from workbench.model.matrix_io import MatrixModelError
+from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import QUANTITIES, FRFSet
 
 __all__ = ["CampaignError", "Factor", "Campaign", "FACTOR_KINDS", "FRF_COLUMNS", "MODES_COLUMNS", "MODES_OPTIONAL",
@@ -71,7 +74,7 @@ class Campaign:
     quantity : what ``frf`` holds: receptance (m/N), mobility (m/s/N) or accelerance (m/s2/N).
     reference : "force" or "voltage" (FRF over shaker drive voltage: levels not comparable).
     synthetic : True for simulated data, False for measurements.
-    frame : the nominal model of the tested article.
+    frame : the nominal model of the tested article: a frame, or a matrix model (CONTRACTS.md section 4).
     factors : the design's factors, in campaign.toml order.
     design : one row per test: ``test_id`` and one column per factor (level keys as strings).
     frf : long form, columns `FRF_COLUMNS`, or None.
@@ -81,7 +84,7 @@ class Campaign:
     """
 
     name: str
-    frame: Frame
+    frame: Frame | MatrixModel
     synthetic: bool
     quantity: str = "accelerance"
     reference: str = "force"
@@ -158,7 +161,7 @@ def _read_table(path: Path, columns: tuple[str, ...], text_columns: tuple[str, .
     return table
 
 
-def _parse_factors(data: Any, path: Path, frame: Frame) -> tuple[Factor, ...]:
+def _parse_factors(data: Any, path: Path, frame: Frame | MatrixModel) -> tuple[Factor, ...]:
     if not isinstance(data, dict):
         fail(path, "factors: expected tables [factors.NAME]")
     factors = []
@@ -236,7 +239,7 @@ def _read_design(design_path: Path, factors: tuple[Factor, ...]) -> pd.DataFrame
     return design
 
 
-def _read_frf(frf_path: Path, frame: Frame, ids: set[str], design_path: Path) -> pd.DataFrame:
+def _read_frf(frf_path: Path, frame: Frame | MatrixModel, ids: set[str], design_path: Path) -> pd.DataFrame:
     """The long-form FRF table: known tests and sensors, frequencies increasing, every test present."""
     frf = _read_table(frf_path, FRF_COLUMNS, ("test_id", "sensor"))
     check_tests(frf, frf_path, ids, design_path)
@@ -306,9 +309,10 @@ def load_campaign(directory: str | Path) -> Campaign:
         fail(directory, "is not a campaign directory")
     path = directory / "campaign.toml"
     data = _read_settings(path)
+    model_path = directory / data["frame"]
     try:
-        frame = read_frame(directory / data["frame"])
-    except FrameFileError as exc:
+        frame = read_matrix_model(model_path) if is_matrix_model(model_path) else read_frame(model_path)
+    except (FrameFileError, MatrixModelError) as exc:
         raise CampaignError(str(exc)) from None
     factors = _parse_factors(data.get("factors", {}), path, frame)
     frf_path = _frf_path(directory, path, data)
@@ -357,10 +361,20 @@ def _csv(table: pd.DataFrame, columns: tuple[str, ...]) -> str:
     return table[list(columns)].to_csv(index=False, float_format="%.17g", lineterminator="\n")
 
 
+def _model_files(campaign: Campaign) -> dict[str, str | bytes]:
+    """The frame file, or a matrix model's file and the files it names, where campaign.toml's ``frame`` says."""
+    if not isinstance(campaign.frame, MatrixModel):
+        return {campaign.frame_file: frame_to_toml(campaign.frame)}
+    # the matrices are copied as they were read: rewriting them could only lose digits
+    where = Path(campaign.frame_file).parent
+    source = Path(campaign.frame.source)
+    return {campaign.frame_file: source.read_bytes(),
+            **{(where / name).as_posix(): path.read_bytes() for name, path in model_files(source).items()}}
+
+
 def campaign_files(campaign: Campaign, frf_format: str = "csv", frf_dtype: str = "float64") -> dict[str, str | bytes]:
     """The files of ``campaign`` as a contract directory: file name -> content (see `write_campaign`)."""
-    files: dict[str, str | bytes] = {"campaign.toml": campaign_toml(campaign),
-                                     campaign.frame_file: frame_to_toml(campaign.frame)}
+    files: dict[str, str | bytes] = {"campaign.toml": campaign_toml(campaign), **_model_files(campaign)}
     if campaign.design is not None:
         files["design.csv"] = _csv(campaign.design, ("test_id",) + tuple(f.name for f in campaign.factors))
     if campaign.frf is not None:

@@ -24,7 +24,8 @@ from workbench.io.outputs import IMPORT_STAMP
 from workbench.io.uff import read_uff
 from workbench.model.frame import Frame
 from workbench.model.frame_file import read_frame
-from workbench.model.matrix_file import is_matrix_model
+from workbench.model.matrix_file import is_matrix_model, read_matrix_model
+from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import QUANTITIES
 
 __all__ = ["UFF_SUFFIXES", "IMPORT_STAMP", "import_campaign", "imported_files"]
@@ -32,7 +33,7 @@ __all__ = ["UFF_SUFFIXES", "IMPORT_STAMP", "import_campaign", "imported_files"]
 UFF_SUFFIXES = (".uff", ".unv", ".uf")
 
 
-def _csv_frfs(path: Path, frame: Frame) -> pd.DataFrame:
+def _csv_frfs(path: Path, frame: Frame | MatrixModel) -> pd.DataFrame:
     try:
         table = pd.read_csv(path, dtype={"test_id": str, "sensor": str})
     except (OSError, ValueError, pd.errors.ParserError) as exc:
@@ -51,7 +52,7 @@ def _csv_frfs(path: Path, frame: Frame) -> pd.DataFrame:
     return table[list(FRF_COLUMNS)]
 
 
-def _read_file(path: Path, frame: Frame, quantity: str | None) -> tuple[pd.DataFrame, str | None, str]:
+def _read_file(path: Path, frame: Frame | MatrixModel, quantity: str | None) -> tuple[pd.DataFrame, str | None, str]:
     """One file's FRF table, its quantity (None for a CSV: the option says) and its reference."""
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
@@ -73,7 +74,7 @@ def _levels(values: pd.Series) -> dict[str, str]:
     return {v: v for v in unique}
 
 
-def _factors(design: pd.DataFrame, frame: Frame) -> tuple[Factor, ...]:
+def _factors(design: pd.DataFrame, frame: Frame | MatrixModel) -> tuple[Factor, ...]:
     """Each design column a factor: ``amplitude`` by name, a tightening of a joint it names, else other."""
     joints = set(frame.joint_names)
     factors = []
@@ -90,7 +91,7 @@ def _factors(design: pd.DataFrame, frame: Frame) -> tuple[Factor, ...]:
     return tuple(factors)
 
 
-def _design(path: Path | None, ids: list[str], frame: Frame) -> tuple[pd.DataFrame, tuple[Factor, ...]]:
+def _design(path: Path | None, ids: list[str], frame: Frame | MatrixModel) -> tuple[pd.DataFrame, tuple[Factor, ...]]:
     if path is None:
         design = pd.DataFrame({"test_id": ids, "test": ids})
         return design, (Factor("test", "other", {i: i for i in ids}),)
@@ -124,10 +125,8 @@ def import_campaign(files: Sequence[str | Path], frame_path: str | Path, design_
         not match the tests.
     """
     frame_path = Path(frame_path)
-    if frame_path.is_file() and is_matrix_model(frame_path):
-        raise ValueError(f"{frame_path}: --frame: a matrix model; import builds campaigns on frame files for now "
-                         "(matrix-model campaigns come with every command's matrix support)")
-    frame = read_frame(frame_path)
+    matrix = frame_path.is_file() and is_matrix_model(frame_path)
+    frame: Frame | MatrixModel = read_matrix_model(frame_path) if matrix else read_frame(frame_path)
     if quantity is not None and quantity not in QUANTITIES:
         raise ValueError(f"--quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
     tables: list[pd.DataFrame] = []
@@ -156,7 +155,8 @@ def import_campaign(files: Sequence[str | Path], frame_path: str | Path, design_
     design, factors = _design(None if design_path is None else Path(design_path), ids, frame)
     names = ", ".join(Path(f).name for f in files)
     return Campaign(name=name or f"imported from {Path(files[0]).name}" + (" and more" if len(files) > 1 else ""),
-                    frame=frame, synthetic=False, quantity=found_quantity, reference=found_reference or "force",
+                    frame=frame, frame_file="model.toml" if matrix else "frame.toml", synthetic=False,
+                    quantity=found_quantity, reference=found_reference or "force",
                     factors=factors, design=design, frf=frf, source=f"{IMPORT_STAMP} {names}")
 
 
@@ -168,8 +168,9 @@ def imported_files(campaign: Campaign, frame_path: str | Path) -> dict[str, str 
     ValueError
         The written campaign would not load (the message names the file inside the campaign).
     """
-    files = campaign_files(campaign)
-    files["frame.toml"] = Path(frame_path).read_bytes()
+    files = campaign_files(campaign)  # a matrix model's files are copied byte for byte there
+    if not isinstance(campaign.frame, MatrixModel):
+        files[campaign.frame_file] = Path(frame_path).read_bytes()
     with tempfile.TemporaryDirectory() as scratch:
         for fname, content in files.items():
             target = Path(scratch) / fname

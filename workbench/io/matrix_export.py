@@ -22,11 +22,11 @@ from workbench.io.outputs import csv_text, write_outputs
 from workbench.model.assembly import Model
 from workbench.model.frame import DOF_NAMES
 from workbench.model.frame_file import toml_string
+from workbench.model.matrix_file import FORMATS
 from workbench.model.matrix_io import load_op4
 
-__all__ = ["MATRIX_FORMATS", "matrix_model_files", "write_matrix_model"]
+__all__ = ["matrix_model_files", "write_matrix_model"]
 
-MATRIX_FORMATS = ("matrix-market", "op4")
 OP4_FILE = "model.op4"
 
 
@@ -58,8 +58,8 @@ def matrix_model_files(model: Model, fmt: str = "matrix-market") -> dict[str, st
     fmt : ``"matrix-market"`` (``M.mtx``, ``K0.mtx``, ``K_<joint>.mtx``) or ``"op4"`` (``model.op4``
         holding ``MAA``, ``KAA`` and ``KJ<n>``, one per joint in the frame's order).
     """
-    if fmt not in MATRIX_FORMATS:
-        raise ValueError(f"format: {fmt!r} is not one of {', '.join(MATRIX_FORMATS)}")
+    if fmt not in FORMATS:
+        raise ValueError(f"format: {fmt!r} is not one of {', '.join(FORMATS)}")
     frame = model.frame
     names = {"mass": "MAA", "stiffness_rest": "KAA"} if fmt == "op4" else {"mass": "M.mtx", "stiffness_rest": "K0.mtx"}
     joint_names = [f"KJ{i + 1}" if fmt == "op4" else f"K_{j.name}.mtx" for i, j in enumerate(frame.joints)]

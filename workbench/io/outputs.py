@@ -216,6 +216,7 @@ class OutputSet:
         tmp.mkdir(parents=True)
         try:
             for name, content in files.items():
+                (tmp / name).parent.mkdir(parents=True, exist_ok=True)  # a model's matrices may sit in a folder
                 _write_synced(tmp / name, content)
             _sync_directory(tmp)
             pause = os.environ.get("WORKBENCH_TEST_PAUSE_BEFORE_SWAP")

@@ -68,6 +68,7 @@ from workbench.io.campaign import FRF_COLUMNS, Campaign, Factor
 from workbench.io.outputs import write_file
 from workbench.io.uff_units import file_units, record_units
 from workbench.model.frame import Frame
+from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import QUANTITIES
 
 __all__ = [
@@ -82,7 +83,7 @@ __all__ = [
     "campaign_from_uff",
 ]
 
-DIRECTION_CODES = {"ux": 1, "uy": 2, "rz": 6}  # UFF record 6: +X, +Y translation, +Z rotation
+DIRECTION_CODES = {"ux": 1, "uy": 2, "uz": 3, "rx": 4, "ry": 5, "rz": 6}  # UFF record 6: +X..+Z translation, rotation
 ORDINATE_TYPES = {"receptance": 8, "mobility": 11, "accelerance": 12}  # displacement, velocity, acceleration
 FORCE_TYPE = 13  # excitation force (record 10, ordinate denominator)
 FREQUENCY_TYPE = 18  # record 8, abscissa
@@ -98,6 +99,23 @@ def _node_numbers(frame: Frame) -> dict[str, int]:
     """
     named = {name: int(name) for name in frame.points if re.fullmatch(r"0|[1-9]\d*", name)}
     return named or {name: k + 1 for k, name in enumerate(frame.points)}
+
+
+def _uff_points(frame: Frame | MatrixModel) -> tuple[dict[str, tuple[int, int]], tuple[int, int] | None]:
+    """UFF ``(node, direction)`` of each sensor (by name) and of the excitation (None without one).
+
+    A frame's nodes are its points' numbers (`_node_numbers`); a matrix model's are its dof table's
+    nodes (CONTRACTS.md section 3).
+    """
+    if isinstance(frame, MatrixModel):
+        dofs = frame.dofs
+        sensors = {s.name: (s.node, DIRECTION_CODES[s.component]) for s in frame.sensors}
+        e = frame.excitation
+        return sensors, None if e is None else (int(dofs.nodes[e]), DIRECTION_CODES[dofs.components[e]])
+    numbering = _node_numbers(frame)
+    sensors = {s.name: (numbering[s.point], DIRECTION_CODES[s.dof]) for s in frame.sensors}
+    x = frame.excitation
+    return sensors, None if x is None else (numbering.get(x.point, -1), DIRECTION_CODES[x.dof])
 
 
 def _even_axis(axis: np.ndarray) -> bool:
@@ -143,10 +161,9 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
     frame = campaign.frame
     if campaign.frf is None or campaign.frf.empty:
         raise ValueError(f"export_frfs: campaign {campaign.name!r} has no FRFs")
-    if frame.excitation is None:
+    sensors, reference_point = _uff_points(frame)
+    if reference_point is None:
         raise ValueError(f"export_frfs: {frame.source}: excitation: required to code the reference node")
-    nodes = _node_numbers(frame)
-    sensors = {s.name: s for s in frame.sensors}
     ordinate_units = _UNITS[campaign.quantity]
     voltage = campaign.reference == "voltage"
     datasets: list[dict[str, Any]] = []
@@ -162,8 +179,8 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
         if not binary and not even and np.any(np.diff([float(f"{x:.5e}") for x in axis]) <= 0):
             raise ValueError(f"export_frfs: test {test_id}, sensor {sensor}: the uneven frequency axis "
                              "does not stay increasing at the 6 digits of ASCII UFF; use binary=True")
-        sensor_def = sensors[sensor]
-        rotation = sensor_def.dof == "rz"
+        node, direction = sensors[sensor]
+        rotation = direction > 3
         dset = {
             "type": 58, "binary": int(binary),
             "id1": _id_field(f"{_MARK}: {campaign.quantity} over {campaign.reference}", "quantity"),
@@ -172,9 +189,8 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
             "id4": _id_field(f"sensor={sensor}", "sensor"),
             "id5": (campaign.name or "NONE")[:_ID_WIDTH].replace("\n", " ") or "NONE",
             "func_type": FRF_FUNCTION_TYPE, "func_id": len(datasets) + 1, "ver_num": 0, "load_case_id": 0,
-            "rsp_ent_name": "NONE", "rsp_node": nodes[sensor_def.point], "rsp_dir": DIRECTION_CODES[sensor_def.dof],
-            "ref_ent_name": "NONE", "ref_node": nodes[frame.excitation.point],
-            "ref_dir": DIRECTION_CODES[frame.excitation.dof],
+            "rsp_ent_name": "NONE", "rsp_node": node, "rsp_dir": direction,
+            "ref_ent_name": "NONE", "ref_node": reference_point[0], "ref_dir": reference_point[1],
             "abscissa_spacing": int(even),
             "abscissa_spec_data_type": FREQUENCY_TYPE, "abscissa_axis_lab": "Frequency",
             "abscissa_axis_units_lab": "Hz",
@@ -270,10 +286,10 @@ def _reference_of(dset: dict[str, Any]) -> str:
     return "force"
 
 
-def _sensor_lookup(frame: Frame, sensor_map: dict[tuple[int, int], str] | None) -> dict[tuple[int, int], str]:
+def _sensor_lookup(frame: Frame | MatrixModel,
+                   sensor_map: dict[tuple[int, int], str] | None) -> dict[tuple[int, int], str]:
     """``{(node, direction): sensor}``: ``sensor_map``, else the frame's own numbering."""
-    numbering = _node_numbers(frame)
-    frame_sensors = {(numbering[s.point], DIRECTION_CODES[s.dof]): s.name for s in frame.sensors}
+    frame_sensors = {point: name for name, point in _uff_points(frame)[0].items()}
     lookup = frame_sensors if sensor_map is None else {(int(n), int(d)): s for (n, d), s in sensor_map.items()}
     known = {s.name for s in frame.sensors}
     for name in lookup.values():
@@ -320,7 +336,7 @@ def _check_frf_kind(dset: dict[str, Any], fail: _Fail, agreed: _Agreement) -> st
     return reference
 
 
-def _test_and_sensor(dset: dict[str, Any], fail: _Fail, frame: Frame, lookup: dict[tuple[int, int], str],
+def _test_and_sensor(dset: dict[str, Any], fail: _Fail, frame: Frame | MatrixModel, lookup: dict[tuple[int, int], str],
                      test_id: Any, excitation: tuple[int, int] | None) -> tuple[Any, str]:
     """The test and the sensor of ``dset``: from its ids in our files, else from its response node."""
     if str(dset.get("id1", "")).startswith(_MARK):
@@ -375,7 +391,7 @@ def _dataset_rows(dset: dict[str, Any], fail: _Fail, tid: Any, sensor: str, ref_
         fail("NaN or infinite value")
     if np.any(np.diff(axis) <= 0) or axis[0] < 0:
         fail("the frequency axis is not strictly increasing from a non-negative value")
-    rotation = abs(int(dset["rsp_dir"])) == DIRECTION_CODES["rz"]
+    rotation = abs(int(dset["rsp_dir"])) > DIRECTION_CODES["uz"]
     units = record_units(dset, quantity, rotation, from_file, reference == "voltage")
     if isinstance(units, str):
         fail(units)
@@ -389,7 +405,7 @@ def _dataset_rows(dset: dict[str, Any], fail: _Fail, tid: Any, sensor: str, ref_
                          "real": values.real.copy(), "imag": values.imag.copy()})
 
 
-def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str] | None,
+def _read(path: str | Path, frame: Frame | MatrixModel, sensor_map: dict[tuple[int, int], str] | None,
           quantity: str | None, test_id: Any) -> tuple[pd.DataFrame, str, str]:
     """The long-form table, the quantity and the reference of a UFF file; see `import_frfs`."""
     path = Path(path)
@@ -400,9 +416,7 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
     lookup = _sensor_lookup(frame, sensor_map)
     # with the frame's own numbering, the excitation is known: each reference must be it (or, for a
     # roving hammer, the response must); a sensor_map says nothing of the excitation's node
-    excitation = None
-    if sensor_map is None and frame.excitation is not None:
-        excitation = (_node_numbers(frame).get(frame.excitation.point, -1), DIRECTION_CODES[frame.excitation.dof])
+    excitation = _uff_points(frame)[1] if sensor_map is None else None
     agreed = _Agreement(quantity, roving=excitation is not None)
     tables = []
     for index, dset in enumerate(d for d in sets if d.get("type") == 58):
@@ -424,7 +438,7 @@ def _read(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str]
     return table, cast(str, agreed.quantity), cast(str, agreed.reference)
 
 
-def import_frfs(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int], str] | None = None,
+def import_frfs(path: str | Path, frame: Frame | MatrixModel, sensor_map: dict[tuple[int, int], str] | None = None,
                 quantity: str | None = None, test_id: Any = 1) -> pd.DataFrame:
     """Read the FRF datasets (58) of a universal file into the contract's long-form FRF table.
 
@@ -456,7 +470,7 @@ def import_frfs(path: str | Path, frame: Frame, sensor_map: dict[tuple[int, int]
     return _read(path, frame, sensor_map, quantity, test_id)[0]
 
 
-def read_uff(path: str | Path, frame: Frame, quantity: str | None = None,
+def read_uff(path: str | Path, frame: Frame | MatrixModel, quantity: str | None = None,
              test_id: Any = 1) -> tuple[pd.DataFrame, str, str]:
     """`import_frfs` with what the file says of itself: ``(table, quantity, reference)``."""
     return _read(path, frame, None, quantity, test_id)
@@ -473,7 +487,7 @@ def uff_quantity(path: str | Path) -> tuple[str | None, str]:
     raise ValueError(f"{path}: holds no FRF dataset 58")
 
 
-def campaign_from_uff(uff_path: str | Path, frame: Frame, name: str, quantity: str | None = None, *,
+def campaign_from_uff(uff_path: str | Path, frame: Frame | MatrixModel, name: str, quantity: str | None = None, *,
                       synthetic: bool = False, factors: tuple[Factor, ...] = (),
                       design: pd.DataFrame | None = None, source: str = "", description: str = "",
                       sensor_map: dict[tuple[int, int], str] | None = None, test_id: Any = 1) -> Campaign:

@@ -11,14 +11,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
 from workbench.model.assembly import Model
 from workbench.model.frame import Frame
+from workbench.model.matrix_model import MatrixModel
 
 __all__ = ["joint_scale", "model_at_moduli", "frame_with_joint_models"]
+
+
+FrameOrMatrices = TypeVar("FrameOrMatrices", Frame, MatrixModel)
 
 
 class Jointed(Protocol):
@@ -64,7 +68,7 @@ def model_at_moduli(model: Model, moduli_pa: np.ndarray) -> Model:
                    stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, model.stiffness_joints)))
 
 
-def frame_with_joint_models(frame: Frame, models: Mapping[str, tuple[float, float]]) -> Frame:
+def frame_with_joint_models(frame: FrameOrMatrices, models: Mapping[str, tuple[float, float]]) -> FrameOrMatrices:
     """Copy of ``frame`` with joint models given per joint group or per joint (section 5 transfer).
 
     The paper identifies one model per joint family on the one-bolt frames (Table 4: vertical
@@ -73,7 +77,7 @@ def frame_with_joint_models(frame: Frame, models: Mapping[str, tuple[float, floa
 
     Parameters
     ----------
-    frame : the frame to predict.
+    frame : the frame to predict, or a matrix model (its joint matrices are scaled to the new means).
     models : ``{name: (youngs_modulus_pa, cov)}``, ``name`` a joint group, or a joint name (which
         wins over its group's entry). Joints that no key names keep the file's values.
 
@@ -105,4 +109,8 @@ def frame_with_joint_models(frame: Frame, models: Mapping[str, tuple[float, floa
             continue
         modulus, cov = models[named]
         joints.append(replace(joint, youngs_modulus=float(modulus), cov=float(cov)))
+    if isinstance(frame, MatrixModel):  # its joint matrices are at the file's means: they move with them
+        scale = [new.youngs_modulus / old.youngs_modulus for new, old in zip(joints, frame.joints)]
+        return replace(frame, joints=tuple(joints),
+                       stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, frame.stiffness_joints)))
     return replace(frame, joints=tuple(joints))

@@ -28,7 +28,7 @@ from workbench.model.matrix_io import (
 )
 from workbench.model.matrix_model import COMPONENTS, DofTable, MatrixJoint, MatrixModel, MatrixSensor
 
-__all__ = ["FORMATS", "MatrixModelError", "read_matrix_model", "is_matrix_model", "read_dofs"]
+__all__ = ["FORMATS", "MatrixModelError", "read_matrix_model", "is_matrix_model", "read_dofs", "model_files"]
 
 FORMATS = ("matrix-market", "op4")
 _TOP_KEYS = {"name", "description", "format", "file", "mass", "stiffness_rest", "dofs", "joints", "excitation",
@@ -166,6 +166,18 @@ def read_matrix_model(path: str | Path) -> MatrixModel:
     return MatrixModel(name, matrices["mass"], matrices["stiffness_rest"],
                        tuple(matrices[key] for key in joint_files), joints, dofs, excitation, sensors, damping,
                        description, fmt, str(path))
+
+
+def model_files(path: str | Path) -> dict[str, Path]:
+    """The files a valid ``model.toml`` names (dofs, matrices or the op4 file): name as written -> path.
+
+    For copying a model beside a campaign: the names are relative to the model file's directory.
+    """
+    path = Path(path)
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    names = [data["dofs"]] + ([data["file"]] if data.get("format") == "op4" else
+                              [data["mass"], data["stiffness_rest"]] + [j["stiffness"] for j in data.get("joints", [])])
+    return {str(name): path.parent / str(name) for name in names}
 
 
 def _existing(top: _Table, key: str, name: str) -> Path:

@@ -16,14 +16,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from workbench.model.assembly import Model
+from workbench.model.assembly import Model, assemble
 from workbench.model.assembly import joint_energies as frame_energies
+from workbench.model.frame import Frame
 from workbench.model.joints import joint_scale, model_at_moduli
 from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import FRFSet, Modes, modal_frf, model_modes, solve_modes
 
-__all__ = ["Structure", "structure_modes", "structure_energies", "structure_at_moduli", "response_dofs",
-           "structure_frf"]
+__all__ = ["Structure", "structure_of", "structure_modes", "structure_energies", "structure_at_moduli",
+           "sensor_dofs", "excitation_dof", "response_dofs", "structure_frf"]
 
 Structure = Model | MatrixModel
 
@@ -63,6 +64,36 @@ def structure_at_moduli(model: Structure, moduli_pa: np.ndarray) -> Structure:
                    stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, model.stiffness_joints)))
 
 
+def structure_of(frame: Frame | MatrixModel) -> Structure:
+    """A frame assembled (eq. 3-4), or a matrix model as it is: what a campaign's ``frame`` names."""
+    return frame if isinstance(frame, MatrixModel) else assemble(frame)
+
+
+def sensor_dofs(model: Structure) -> np.ndarray:
+    """The sensors' dofs (n_sensors,), in the file's order.
+
+    Raises
+    ------
+    ValueError
+        The model has no sensor (one line naming its file).
+    """
+    if isinstance(model, Model):
+        if not model.frame.sensors:
+            raise ValueError(f"{model.source}: sensors: the frame has no [[sensors]]")
+        return np.array([model.dof(s.point, s.dof) for s in model.frame.sensors])
+    if not model.sensors:
+        raise ValueError(f"{model.source}: sensors: the model has no [[sensors]]")
+    return np.array([s.dof for s in model.sensors])
+
+
+def excitation_dof(model: Structure) -> int | None:
+    """The excited dof, or None when the model has no excitation."""
+    if isinstance(model, Model):
+        e = model.frame.excitation
+        return None if e is None else model.dof(e.point, e.dof)
+    return model.excitation
+
+
 def response_dofs(model: Structure) -> tuple[np.ndarray, int, tuple[str, ...]]:
     """The sensors' dofs, the excitation's dof and the sensor names, in the file's order.
 
@@ -71,19 +102,12 @@ def response_dofs(model: Structure) -> tuple[np.ndarray, int, tuple[str, ...]]:
     ValueError
         The model has no excitation or no sensor (one line naming its file).
     """
-    if isinstance(model, Model):
-        frame = model.frame
-        if frame.excitation is None:
-            raise ValueError(f"{frame.source}: excitation: the frame has no [excitation] table")
-        if not frame.sensors:
-            raise ValueError(f"{frame.source}: sensors: the frame has no [[sensors]]")
-        return (np.array([model.dof(s.point, s.dof) for s in frame.sensors]),
-                model.dof(frame.excitation.point, frame.excitation.dof), tuple(s.name for s in frame.sensors))
-    if model.excitation is None:
+    excitation = excitation_dof(model)
+    if excitation is None:
         raise ValueError(f"{model.source}: excitation: the model has no [excitation] table")
-    if not model.sensors:
-        raise ValueError(f"{model.source}: sensors: the model has no [[sensors]]")
-    return np.array([s.dof for s in model.sensors]), model.excitation, tuple(s.name for s in model.sensors)
+    sensors = sensor_dofs(model)
+    names = tuple(s.name for s in (model.frame.sensors if isinstance(model, Model) else model.sensors))
+    return sensors, excitation, names
 
 
 def structure_frf(model: Structure, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",

@@ -7,7 +7,7 @@ Numbers only, no figure and no HTML (`workbench.report` draws them); no matplotl
 Mode shapes at the sensors: the circle fit's modal constants ``A_r(s)`` (receptance form, 1/kg,
 `workbench.extraction.records.MeasuredModes.modal_constants`) are the product of the
 mass-normalised shape at sensor ``s`` and at the excitation; the model's counterpart is
-``phi_r(s) phi_r(exc)`` of the nominal modes (joints at their mean, `workbench.model.modal.model_modes`),
+``phi_r(s) phi_r(exc)`` of the nominal modes (joints at their mean, `workbench.model.structure.structure_modes`),
 as `workbench.uq.prediction.frf_band` builds its constants. A measured constant is complex (damping,
 noise): each test's vector of a mode is turned to its dominant phase (the angle maximising the
 energy of its real part, ``theta = arg(sum A^2) / 2``) and its real part kept; the tests' vectors,
@@ -25,8 +25,8 @@ import numpy as np
 
 from workbench.extraction.records import MeasuredModes
 from workbench.io.campaign import Campaign, load_campaign
-from workbench.model.assembly import assemble
-from workbench.model.modal import mac, model_modes
+from workbench.model.modal import mac
+from workbench.model.structure import response_dofs, structure_modes, structure_of
 from workbench.tasks import Mapper
 from workbench.workflow.measured import Extraction, extract_campaign
 
@@ -185,15 +185,13 @@ def shape_comparison(campaign: Campaign, data: MeasuredModes, sensors: Sequence[
     or fewer than two sensors (a MAC of one number says nothing).
     """
     constants = data.modal_constants if constants is None else constants
-    frame = campaign.frame
-    if constants is None or frame.excitation is None or len(sensors) < 2 or constants.shape[2] != len(sensors):
+    if constants is None or campaign.frame.excitation is None or len(sensors) < 2 or constants.shape[2] != len(sensors):
         return None
-    model = assemble(frame)
-    by_name = {s.name: s for s in frame.sensors}
-    rows = np.array([model.dof(by_name[s].point, by_name[s].dof) for s in sensors])
-    excitation = model.dof(frame.excitation.point, frame.excitation.dof)
+    model = structure_of(campaign.frame)
+    all_rows, excitation, names = response_dofs(model)
+    rows = all_rows[[names.index(s) for s in sensors]]
     n_measured = constants.shape[1]
-    solved = model_modes(model, min(n_measured + extra + 3, model.size - 1))
+    solved = structure_modes(model, min(n_measured + extra + 3, model.size - 1))
     elastic = np.flatnonzero(solved.frequency_hz >= RIGID_HZ)[: n_measured + extra]
     shapes = solved.shapes[:, elastic]
     model_constants = (shapes[rows] * shapes[excitation][None, :]).T  # (n_model, n_sensors)

@@ -221,6 +221,7 @@ def run_case(frame: Frame, kind: str, seed: int) -> CaseResult:
     rng = np.random.default_rng(seed)
     effect = draw_effect(frame, kind, rng)
     campaign, _ = case_campaign(frame, effect, seed)
+    assert isinstance(campaign.frame, Frame)  # the rig builds its campaigns on frame files
     result = diagnose(campaign.frame, measured_modes(campaign, None, "diagnose"))  # the truth is not passed
     expected = _expected(effect)
     right = result.verdict == expected

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from workbench.identify.moments import MomentFit, moment_matching
-from workbench.model.assembly import assemble
+from workbench.model.structure import structure_of
 from workbench.progress import Progress
 from workbench.workflow.execution import mapper as task_mapper
 from workbench.workflow.measured import Loaded, campaign_label, load_and_extract, load_campaigns, measured_modes
@@ -55,7 +55,7 @@ def _fit_of(path: str, loaded: Loaded, seed: int) -> MomentFit:
     campaign, extraction = loaded
     data = (extraction.measured_modes(f"{path} (modes by circle fit of its FRFs)") if extraction is not None
             else measured_modes(campaign, None, "identify from"))
-    return moment_matching(assemble(campaign.frame), data, seed=seed)
+    return moment_matching(structure_of(campaign.frame), data, seed=seed)
 
 
 def _sources_of(path: str, loaded: Loaded, seed: int) -> dict[str, JointSource]:

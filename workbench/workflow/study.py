@@ -33,9 +33,10 @@ from workbench.extraction.records import MeasuredModes
 from workbench.identify.bayes import Posterior, bayes_identify
 from workbench.identify.moments import MomentFit, moment_matching
 from workbench.io.campaign import Campaign
-from workbench.model.assembly import Model, assemble
 from workbench.model.frame import Frame
 from workbench.model.joints import frame_with_joint_models
+from workbench.model.matrix_model import MatrixModel
+from workbench.model.structure import Structure, structure_of
 from workbench.progress import Progress
 from workbench.tasks import Mapper
 from workbench.uq.prediction import (
@@ -233,7 +234,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
                            "so there are no measured FRFs to overlay and no circle fit to show.")
         data = measured_modes(campaign, None, "identify from")
 
-    model = assemble(campaign.frame)
+    model = structure_of(campaign.frame)
     fit = fit or moment_matching(model, data, seed=seed)
     sources = joint_sources(fit, campaign_label(campaign))
     steps.add("moment matching", None, ", ".join(f"{g}: E = {s.youngs_modulus_pa / 1e9:.3g} GPa, "
@@ -248,8 +249,8 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
         steps.add("Bayesian identification (emcee)", start,
                   f"{posterior.walkers} walkers x {posterior.steps} steps, max R-hat {posterior.rhat.max():.3f}", seed)
 
-    identified = assemble(frame_with_joint_models(campaign.frame, _joint_models(sources)))
-    joints = joint_model(identified.frame)
+    identified = structure_of(frame_with_joint_models(campaign.frame, _joint_models(sources)))
+    joints = joint_model(identified)
     count = int(np.asarray(data.modes).max())
     accuracy, accuracy_note = None, ""
     if joints.random.any():
@@ -281,7 +282,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
                  extraction_note, bayes_note, accuracy_note, band_note)
 
 
-def _propagate(model: Model, joints, method: str, count: int, seed: int) -> FrequencyMoments:
+def _propagate(model: Structure, joints, method: str, count: int, seed: int) -> FrequencyMoments:
     return propagate(model, joints, method, count, seed=seed)
 
 
@@ -305,7 +306,7 @@ class Prediction:
     campaign: Campaign
     extraction: Extraction
     sources: dict[str, JointSource]
-    frame: Frame
+    frame: Frame | MatrixModel
     moments: FrequencyMoments
     band: FRFBand
     comparison: FrequencyComparison
@@ -336,7 +337,7 @@ def predict_campaign(campaign, extraction: Extraction, sources: Mapping[str, Joi
     steps = Steps(notify, f"{campaign_label(campaign)}: ")
     start = time.perf_counter()
     frame = frame_with_joint_models(campaign.frame, _joint_models(sources))
-    model = assemble(frame)
+    model = structure_of(frame)
     joints = joint_model(frame)
     measured = extraction.frequency_hz()
     count = min(measured.shape[1], model.size - 2)
