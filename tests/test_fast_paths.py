@@ -23,7 +23,7 @@ from workbench.model.assembly import assemble
 from workbench.model.frame import locate_point, points_on_member
 from workbench.model.generate import multibay_frame
 from workbench.model.modal import Modes, add_noise, modal_frf
-from workbench.uq.smr import _x_minus_log1p
+from workbench.uq.sqrt_moments import _x_minus_log1p
 
 
 def test_points_on_member_is_locate_point_for_every_point():

@@ -22,8 +22,8 @@ from workbench.uq.smr import (
     sensitivities,
     smr1,
     smr2,
-    sqrt_moments,
 )
+from workbench.uq.sqrt_moments import sqrt_moments
 from workbench.uq.stochastic import (
     JointModel,
     expectation_rule,
@@ -82,6 +82,38 @@ def test_sqrt_moments_agrees_with_the_gauss_rule_for_several_joints():
     f = np.sqrt(a + gamma @ b)
     assert mean == pytest.approx(w @ f, rel=1e-12)
     assert std == pytest.approx(np.sqrt(w @ (f - w @ f) ** 2), rel=1e-7)
+
+
+def _quad_sqrt_moments(constant: float, weights: np.ndarray, shape: np.ndarray) -> tuple[float, float]:
+    """The same integral by scipy's adaptive quadrature, a second method for the fixed rule."""
+    from scipy.integrate import quad
+
+    mu = constant + weights.sum()
+    rate = weights / shape / mu
+
+    def integrand(s: float) -> float:
+        x = s * rate
+        r = float(np.sum(shape * (x - np.log1p(x)))) if s > 1e-3 else float(np.sum(shape * x * x / 2 * (1 - 2 * x / 3)))
+        return (np.exp(-s) * np.expm1(r) if r < 1 else np.exp(r - s) - np.exp(-s)) * s**-1.5
+
+    total = sum(quad(integrand, a, b, epsabs=0.0, epsrel=1e-12, limit=400)[0]
+                for a, b in ((0, 1), (1, 10), (10, 60), (60, np.inf)))
+    delta = -np.sqrt(mu) / (2 * np.sqrt(np.pi)) * total
+    return float(np.sqrt(mu) + delta), float(np.sqrt(-2 * np.sqrt(mu) * delta - delta**2))
+
+
+def test_the_fixed_rule_matches_adaptive_quadrature_for_many_joints():
+    rng = np.random.default_rng(7)
+    for _ in range(12):
+        n = int(rng.integers(1, 250))
+        cov = rng.uniform(0.01, 0.45, n)
+        weights = rng.exponential(1.0, (4, n)) * (rng.uniform(size=(4, n)) < rng.uniform(0.05, 1.0))
+        weights[:, 0] += 0.1  # every sum random
+        constant = rng.choice([0.0, 1e-3, 1.0, 100.0]) * weights.sum(axis=1)
+        mean, std = sqrt_moments(constant, weights, 1 / cov**2, cov**2)
+        for k in range(4):
+            m, s = _quad_sqrt_moments(constant[k], weights[k], 1 / cov**2)
+            assert mean[k] == pytest.approx(m, rel=1e-11) and std[k] == pytest.approx(s, rel=1e-8)
 
 
 def test_zero_variance_gives_the_deterministic_answer_exactly(vertical):

@@ -84,3 +84,27 @@ def test_pert2_refuses_a_repeated_eigenvalue_naming_the_modes(tmp_path):
     [line] = error_lines(err)
     assert "modes 2 and 3" in line and "--method" in line
     assert not (tmp_path / "out").exists()
+
+
+def test_smr1_solves_past_its_last_mode_only_when_a_pair_straddles_the_cut(square, monkeypatch):
+    from workbench.uq import smr
+
+    model, joints, _ = square
+    assert model.size > smr.DENSE_LIMIT  # the Sturm-count path, not the dense one
+    full = propagate(model, joints, "smr1", count=8)
+    solved = []
+    real = smr.sensitivities
+    monkeypatch.setattr(smr, "sensitivities", lambda *a, **k: solved.append(k.get("extra", smr.EXTRA_MODES))
+                        or real(*a, **k))
+    # modes 6 and 7 (1-based) share an eigenvalue: cut between them, the pair is solved whole
+    cut = smr.smr1(model, joints, 6)
+    assert solved == [0, smr.EXTRA_MODES]
+    np.testing.assert_allclose(cut.mean_hz, full.mean_hz[:6], rtol=1e-12)
+    np.testing.assert_allclose(cut.std_hz, full.std_hz[:6], rtol=1e-9)
+    # cut after mode 5, nothing shared: no extra mode, the same moments, no proximity factor for the last
+    solved.clear()
+    safe = smr.smr1(model, joints, 5)
+    assert solved == [0]
+    np.testing.assert_allclose(safe.mean_hz, full.mean_hz[:5], rtol=1e-12)
+    np.testing.assert_allclose(safe.std_hz, full.std_hz[:5], rtol=1e-9)
+    assert safe.proximity is not None and np.isnan(safe.proximity[-1]) and np.all(np.isfinite(safe.proximity[:-1]))

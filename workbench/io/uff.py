@@ -66,6 +66,7 @@ import pyuff
 
 from workbench.io.campaign import FRF_COLUMNS, Campaign, Factor
 from workbench.io.outputs import write_file
+from workbench.io.uff_nodes import DIRECTION_CODES, sensor_lookup, uff_points
 from workbench.io.uff_units import file_units, record_units
 from workbench.model.frame import Frame
 from workbench.model.matrix_model import MatrixModel
@@ -83,7 +84,6 @@ __all__ = [
     "campaign_from_uff",
 ]
 
-DIRECTION_CODES = {"ux": 1, "uy": 2, "uz": 3, "rx": 4, "ry": 5, "rz": 6}  # UFF record 6: +X..+Z translation, rotation
 ORDINATE_TYPES = {"receptance": 8, "mobility": 11, "accelerance": 12}  # displacement, velocity, acceleration
 FORCE_TYPE = 13  # excitation force (record 10, ordinate denominator)
 FREQUENCY_TYPE = 18  # record 8, abscissa
@@ -91,31 +91,6 @@ FRF_FUNCTION_TYPE = 4
 _MARK = "workbench frf"
 _ID_WIDTH = 80
 _UNITS = {"receptance": ("m", "rad"), "mobility": ("m/s", "rad/s"), "accelerance": ("m/s2", "rad/s2")}
-
-
-def _node_numbers(frame: Frame) -> dict[str, int]:
-    """UFF node number of each frame point (CONTRACTS.md section 3): the point named by the number
-    (``"4"`` is node 4); a frame with no point named by a number uses its index in ``[points]`` + 1.
-    """
-    named = {name: int(name) for name in frame.points if re.fullmatch(r"0|[1-9]\d*", name)}
-    return named or {name: k + 1 for k, name in enumerate(frame.points)}
-
-
-def _uff_points(frame: Frame | MatrixModel) -> tuple[dict[str, tuple[int, int]], tuple[int, int] | None]:
-    """UFF ``(node, direction)`` of each sensor (by name) and of the excitation (None without one).
-
-    A frame's nodes are its points' numbers (`_node_numbers`); a matrix model's are its dof table's
-    nodes (CONTRACTS.md section 3).
-    """
-    if isinstance(frame, MatrixModel):
-        dofs = frame.dofs
-        sensors = {s.name: (s.node, DIRECTION_CODES[s.component]) for s in frame.sensors}
-        e = frame.excitation
-        return sensors, None if e is None else (int(dofs.nodes[e]), DIRECTION_CODES[dofs.components[e]])
-    numbering = _node_numbers(frame)
-    sensors = {s.name: (numbering[s.point], DIRECTION_CODES[s.dof]) for s in frame.sensors}
-    x = frame.excitation
-    return sensors, None if x is None else (numbering.get(x.point, -1), DIRECTION_CODES[x.dof])
 
 
 def _even_axis(axis: np.ndarray) -> bool:
@@ -161,7 +136,7 @@ def export_frfs(campaign: Campaign, path: str | Path, binary: bool = True) -> Pa
     frame = campaign.frame
     if campaign.frf is None or campaign.frf.empty:
         raise ValueError(f"export_frfs: campaign {campaign.name!r} has no FRFs")
-    sensors, reference_point = _uff_points(frame)
+    sensors, reference_point = uff_points(frame)
     if reference_point is None:
         raise ValueError(f"export_frfs: {frame.source}: excitation: required to code the reference node")
     ordinate_units = _UNITS[campaign.quantity]
@@ -286,19 +261,6 @@ def _reference_of(dset: dict[str, Any]) -> str:
     return "force"
 
 
-def _sensor_lookup(frame: Frame | MatrixModel,
-                   sensor_map: dict[tuple[int, int], str] | None) -> dict[tuple[int, int], str]:
-    """``{(node, direction): sensor}``: ``sensor_map``, else the frame's own numbering."""
-    frame_sensors = {point: name for name, point in _uff_points(frame)[0].items()}
-    lookup = frame_sensors if sensor_map is None else {(int(n), int(d)): s for (n, d), s in sensor_map.items()}
-    known = {s.name for s in frame.sensors}
-    for name in lookup.values():
-        if name not in known:
-            raise ValueError(f"sensor_map: {name!r} is not a sensor of {frame.source} "
-                             f"(sensors: {', '.join(sorted(known)) or 'none'})")
-    return lookup
-
-
 @dataclass
 class _Agreement:
     """What the datasets read so far share: one quantity, one reference, one excitation, no repeat."""
@@ -413,10 +375,10 @@ def _read(path: str | Path, frame: Frame | MatrixModel, sensor_map: dict[tuple[i
         raise ValueError(f"quantity: {quantity!r} is not one of {', '.join(QUANTITIES)}")
     sets = _read_datasets(path)
     from_file = file_units(sets)
-    lookup = _sensor_lookup(frame, sensor_map)
+    lookup = sensor_lookup(frame, sensor_map)
     # with the frame's own numbering, the excitation is known: each reference must be it (or, for a
     # roving hammer, the response must); a sensor_map says nothing of the excitation's node
-    excitation = _uff_points(frame)[1] if sensor_map is None else None
+    excitation = uff_points(frame)[1] if sensor_map is None else None
     agreed = _Agreement(quantity, roving=excitation is not None)
     tables = []
     for index, dset in enumerate(d for d in sets if d.get("type") == 58):

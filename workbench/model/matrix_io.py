@@ -27,6 +27,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from workbench.model.modal import ldl_pivots
+
 __all__ = ["MatrixModelError", "SYMMETRY_TOLERANCE", "SEMIDEFINITE_TOLERANCE", "load_op4", "read_mtx",
            "op4_directory", "read_op4", "checked_matrix", "check_positive_definite", "check_semidefinite"]
 
@@ -230,24 +232,6 @@ def checked_matrix(a: sp.csr_matrix, where: str) -> sp.csr_matrix:
     return a
 
 
-def _ldl_pivots(a: sp.spmatrix) -> tuple[np.ndarray, np.ndarray] | None:
-    """Pivots of ``P^T A P = L D L^T`` and the row each belongs to, or None when no such factorisation exists.
-
-    SuperLU with diagonal pivoting preferred (threshold 0) and a symmetric ordering factors a symmetric
-    matrix as ``L (D L^T)``: the diagonal of U holds D, whose signs are the matrix's inertia (Sylvester).
-    When it had to take an off-diagonal pivot (a zero on the diagonal), or the matrix is exactly singular,
-    the matrix is not definite. Its cost is that of the sparse factorisation the modal solve does anyway.
-    """
-    try:
-        lu = spla.splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True, "Equil": False})
-    except RuntimeError:  # SuperLU: "Factor is exactly singular"
-        return None
-    if not np.array_equal(lu.perm_r, lu.perm_c):
-        return None
-    return lu.U.diagonal(), np.argsort(lu.perm_c)
-
-
 def check_positive_definite(a: sp.csr_matrix, where: str, label: Callable[[int], str] | None = None) -> None:
     """Refuse a mass matrix that is not positive definite.
 
@@ -265,7 +249,7 @@ def check_positive_definite(a: sp.csr_matrix, where: str, label: Callable[[int],
         fail(where, f"not positive definite: diagonal entry of {name(row)} is {diagonal[row]:g} "
                     "(every dof needs mass)")
     largest = float(np.abs(a.data).max())
-    factors = _ldl_pivots(a)
+    factors = ldl_pivots(a)
     if factors is None:
         fail(where, "not positive definite (singular, or indefinite: the symmetric factorisation fails)")
     pivots, rows = factors
@@ -302,7 +286,7 @@ def check_semidefinite(a: sp.csr_matrix, where: str) -> None:
         low = high
         if high > 0:
             shifted = sub + SEMIDEFINITE_TOLERANCE * high * sp.identity(support.size, format="csr")
-            factors = _ldl_pivots(shifted)
+            factors = ldl_pivots(shifted)
             low = high if factors is not None and (factors[0] > 0).all() else -np.inf
     if high <= 0 or low < -SEMIDEFINITE_TOLERANCE * high:
         smallest = "below that" if np.isinf(low) else f"{low:.3g}"

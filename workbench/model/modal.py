@@ -24,6 +24,8 @@ __all__ = [
     "Modes",
     "FRFSet",
     "solve_modes",
+    "ldl_pivots",
+    "count_below",
     "model_modes",
     "mac",
     "DEGENERATE_GAP",
@@ -108,6 +110,34 @@ def _normalise(vectors: np.ndarray, mass: sp.spmatrix | np.ndarray) -> np.ndarra
     vectors = vectors / norms
     peak = vectors[np.abs(vectors).argmax(axis=0), np.arange(vectors.shape[1])]
     return vectors * np.sign(peak)
+
+
+def ldl_pivots(a: sp.spmatrix) -> tuple[np.ndarray, np.ndarray] | None:
+    """Pivots of ``P^T A P = L D L^T`` and the row each belongs to, or None when no such factorisation exists.
+
+    SuperLU with diagonal pivoting preferred (threshold 0) and a symmetric ordering factors a symmetric
+    matrix as ``L (D L^T)``: the diagonal of U holds D, whose signs are the matrix's inertia (Sylvester).
+    When it had to take an off-diagonal pivot (a zero on the diagonal), or the matrix is exactly singular,
+    the matrix is not definite. Its cost is that of the sparse factorisation the modal solve does anyway.
+    """
+    try:
+        lu = spla.splu(sp.csc_matrix(a), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True, "Equil": False})
+    except RuntimeError:  # SuperLU: "Factor is exactly singular"
+        return None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None
+    return lu.U.diagonal(), np.argsort(lu.perm_c)
+
+
+def count_below(stiffness: sp.spmatrix, mass: sp.spmatrix, value: float) -> int | None:
+    """How many eigenvalues of ``K phi = lambda M phi`` lie below ``value``: a Sturm sequence check.
+
+    By Sylvester's law of inertia, the negative pivots of ``K - value M = L D L^T`` count them. None
+    when the factorisation needed an off-diagonal pivot (or ``value`` is an eigenvalue): no count then.
+    """
+    factors = ldl_pivots(sp.csc_matrix(stiffness - value * mass))
+    return None if factors is None else int(np.sum(factors[0] < 0))
 
 
 def solve_modes(stiffness: sp.spmatrix | np.ndarray, mass: sp.spmatrix | np.ndarray, count: int,

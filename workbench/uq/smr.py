@@ -7,7 +7,7 @@ eigenfrequencies, modes in the nominal model's order.
 
 SMR1 (eq. 5) keeps the nominal eigenvectors: ``lambda_k = lambda_k,rest + sum_j gamma_j lambda_kj``
 with ``lambda_kj = phi_k^T K_j phi_k``. Its frequency moments are computed exactly, without
-sampling, from the Gamma laws' Laplace transforms (`sqrt_moments`).
+sampling, from the Gamma laws' Laplace transforms (`workbench.uq.sqrt_moments`).
 
 SMR2 (eq. 6-7) lets the eigenvector vary to first order, ``phi_k(gamma) = phi_k + sum_j
 dphi_k/dgamma_j (gamma_j - 1)``, with Nelson's derivatives. We evaluate the eigenvalue as the
@@ -46,14 +46,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.integrate import quad
 
-from workbench.model.modal import Modes, shared_eigenvalues
+from workbench.model.modal import DEGENERATE_GAP, DENSE_LIMIT, Modes, count_below, shared_eigenvalues
 from workbench.model.structure import Structure, structure_energies, structure_modes
 from workbench.progress import Progress
 from workbench.tasks import Mapper
 from workbench.uq.degenerate import cluster_moments, describe
 from workbench.uq.limits import check_cov
+from workbench.uq.sqrt_moments import sqrt_moments
 from workbench.uq.stochastic import TENSOR_LIMIT, FrequencyMoments, JointModel, expectation_rule, monte_carlo
 
 __all__ = [
@@ -62,7 +62,6 @@ __all__ = [
     "dispersion",
     "Sensitivities",
     "sensitivities",
-    "sqrt_moments",
     "eigenvalue_moments",
     "proximity_factor",
     "eigenvector_derivatives",
@@ -105,78 +104,36 @@ class Sensitivities:
                              "adaptive and Pert2 move the model there with workbench.model.joints.model_at_moduli")
 
 
-def sensitivities(model: Structure, count: int, gamma: np.ndarray | None = None) -> Sensitivities:
+def sensitivities(model: Structure, count: int, gamma: np.ndarray | None = None,
+                  extra: int = EXTRA_MODES) -> Sensitivities:
     """Nominal modes of ``model`` (joints at ``gamma``, default their means) and ``lambda_kj`` (eq. 5).
 
     With ``gamma``, ``lambda_kj`` is relative to that point: right for SMR1, which needs only the
     nominal solve there. SMR2, adaptive and Pert2 refuse such sensitivities; give them the model
     moved to that point instead (`workbench.model.joints.model_at_moduli`).
     """
-    modes = structure_modes(model, min(count + EXTRA_MODES, model.size - 2), gamma)
+    modes = structure_modes(model, min(count + extra, model.size - 2), gamma)
     rest, joints = structure_energies(model, modes.shapes)
     if gamma is not None:
         joints = joints * np.asarray(gamma, float)[:, None]
     return Sensitivities(modes, rest, joints.T, None if gamma is None else np.asarray(gamma, float))
 
 
-_SERIES = np.array([(-1.0) ** n / n for n in range(2, 12)])[::-1]  # x^2 (1/2 - x/3 + x^2/4 - ...), Horner order
+def _smr1_sensitivities(model: Structure, count: int) -> Sensitivities:
+    """SMR1's nominal solve: the ``count`` modes it needs, and the extra ones only when they matter.
 
-
-def _x_minus_log1p(x: np.ndarray) -> np.ndarray:
-    """``x - log(1 + x)`` without cancellation for small x.
-
-    Below |x| = 0.01 the series to x^11 (truncation under 1e-20 relative); above, the direct
-    difference loses at most log10(2 / 0.01) = 2.3 of 16 digits. The quadrature of `sqrt_moments`
-    calls this thousands of times per mode, on every joint: a short series keeps SMR1 cheap with
-    hundreds of joints.
+    Eq. (5) needs nothing above mode ``count``; the extra modes serve the last modes' proximity
+    factor, and catch a repeated eigenvalue split by the cut (its SMR needs the whole pair). On a
+    large model they can cost as much again as the solve (a cluster just above the cut slows
+    Lanczos): a Sturm count (one factorisation) shows whether an eigenvalue shares mode
+    ``count``'s, and only then are they solved. Small models solve them always (dense, cheap).
     """
-    x = np.asarray(x, float)
-    out = x - np.log1p(x)
-    small = np.abs(x) < 0.01
-    if np.any(small):
-        xs = x[small]
-        acc = np.full_like(xs, _SERIES[0])
-        for c in _SERIES[1:]:
-            acc = acc * xs + c
-        out[small] = acc * xs * xs
-    return out
-
-
-def sqrt_moments(constant: float, weights: np.ndarray, shape: np.ndarray, scale: np.ndarray) -> tuple[float, float]:
-    """Mean and standard deviation of ``sqrt(X)``, ``X = constant + sum_i weights_i gamma_i``.
-
-    ``gamma_i ~ Gamma(shape_i, scale_i)`` independent, ``shape_i * scale_i = 1``. Exact, for any
-    number of gammas: with ``mu = E[X]`` and ``r(s) = sum_i shape_i (x_i - log(1 + x_i))``,
-    ``x_i = s weights_i scale_i / mu``,
-
-        E[sqrt X] - sqrt(mu) = -sqrt(mu) / (2 sqrt(pi)) int_0^inf e^-s expm1(r(s)) s^(-3/2) ds,
-
-    from ``sqrt(x) = (2 sqrt(pi))^-1 int_0^inf (1 - e^(-t x)) t^(-3/2) dt`` and the Gamma Laplace
-    transform. The variance ``mu - E[sqrt X]^2`` is formed from the difference, so no cancellation
-    spoils the small CoVs of eigenfrequencies (Table 3: 1e-4).
-    """
-    weights, shape, scale = (np.asarray(a, float) for a in (weights, shape, scale))
-    mu = constant + float(np.sum(weights))  # E[gamma_i] = 1
-    if mu <= 0:
-        raise ValueError(f"sqrt_moments: E[X] = {mu} must be positive")
-    if weights.size == 0 or not np.any(weights):
-        return float(np.sqrt(mu)), 0.0
-    rate = weights * scale / mu
-
-    def integrand(s: float) -> float:
-        r = float(np.sum(shape * _x_minus_log1p(s * rate)))
-        # e^-s expm1(r): expm1 keeps small r exact; for large r (no rest stiffness) it would
-        # overflow where the product itself is tiny.
-        value = np.exp(-s) * np.expm1(r) if r < 1.0 else np.exp(r - s) - np.exp(-s)
-        return value * s**-1.5
-
-    total = 0.0
-    for a, b in ((0.0, 1.0), (1.0, 10.0), (10.0, 60.0), (60.0, np.inf)):
-        value, _ = quad(integrand, a, b, epsabs=0.0, epsrel=1e-12, limit=200)
-        total += value
-    delta = -np.sqrt(mu) / (2.0 * np.sqrt(np.pi)) * total
-    variance = -2.0 * np.sqrt(mu) * delta - delta * delta
-    return float(np.sqrt(mu) + delta), float(np.sqrt(max(variance, 0.0)))
+    if model.size <= DENSE_LIMIT or count + 1 >= model.size - 2:
+        return sensitivities(model, count)
+    sens = sensitivities(model, count, extra=0)
+    top = sens.modes.eigenvalues[count - 1]
+    below = count_below(model.stiffness(), model.mass, top * (1.0 + 2.0 * DEGENERATE_GAP))
+    return sens if below == count else sensitivities(model, count)
 
 
 def eigenvalue_moments(sens: Sensitivities, joints: JointModel) -> tuple[np.ndarray, np.ndarray]:
@@ -229,7 +186,7 @@ def smr1(model: Structure, joints: JointModel, count: int = 10, sens: Sensitivit
         ``mean_hz``, ``std_hz`` of the first ``count`` modes; ``proximity`` holds PF_k.
     """
     _check(model, joints)
-    sens = sens or sensitivities(model, count)
+    sens = sens or _smr1_sensitivities(model, count)
     r = joints.random
     if r.sum() <= TENSOR_LIMIT:
         # The tensor Gauss rule integrates sqrt of the linear form to about 1e-10 for CoV <= 0.22
@@ -239,15 +196,15 @@ def smr1(model: Structure, joints: JointModel, count: int = 10, sens: Sensitivit
         mean = weights @ f
         std = np.sqrt(weights @ (f - mean) ** 2)
     else:
-        mean, std = np.empty(count), np.empty(count)
-        for k in range(count):
-            constant = sens.rest[k] + sens.joints[k, ~r].sum()
-            m, s = sqrt_moments(constant, sens.joints[k, r], joints.shape[r], joints.scale[r])
-            mean[k], std[k] = m / TWO_PI, s / TWO_PI
+        constant = sens.rest[:count] + sens.joints[:count, ~r].sum(axis=1)
+        mean, std = sqrt_moments(constant, sens.joints[:count, r], joints.shape[r], joints.scale[r])
+        mean, std = mean / TWO_PI, std / TWO_PI
     _on_clusters(model, joints, sens, count, mean, std)
     lam_mean, lam_std = eigenvalue_moments(sens, joints)
-    return _finite(FrequencyMoments(mean, std, "smr1", sens.modes.frequency_hz[:count],
-                                    proximity=proximity_factor(lam_mean, lam_std)[:count],
+    proximity = proximity_factor(lam_mean, lam_std)[:count]
+    if sens.modes.count == count:
+        proximity[-1] = np.nan  # its upper neighbour was not solved: no factor rather than half of one
+    return _finite(FrequencyMoments(mean, std, "smr1", sens.modes.frequency_hz[:count], proximity=proximity,
                                     dispersion=dispersion(sens, joints)[:count]))
 
 
