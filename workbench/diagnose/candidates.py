@@ -38,7 +38,7 @@ from workbench.rig.effects import (
     SUPPORT_COMPLIANCE,
 )
 
-__all__ = ["GRID_POINTS", "frame_curves", "members_at"]
+__all__ = ["GRID_POINTS", "frame_curves", "joint_curves", "members_at"]
 
 GRID_POINTS = 33
 
@@ -57,12 +57,13 @@ def _reference_bending(frame: Frame, point: str) -> tuple[float, float]:
 
 
 def _support_curves(base: Baseline) -> list[Curve | None]:
+    frame, _ = base.planar
     curves = []
-    for s in base.frame.supports:
+    for s in frame.supports:
         if s.rz is None:
             continue
         if math.isinf(s.rz):
-            ei, length = _reference_bending(base.frame, s.point)
+            ei, length = _reference_bending(frame, s.point)
             values = ei / length * np.logspace(-2, 3, GRID_POINTS)
         else:
             values = s.rz * np.logspace(-3, 0, GRID_POINTS)
@@ -71,36 +72,39 @@ def _support_curves(base: Baseline) -> list[Curve | None]:
 
 
 def _stinger_curves(base: Baseline) -> list[Curve | None]:
-    excitation = base.frame.excitation
+    frame, model = base.planar
+    excitation = frame.excitation
     if excitation is None:
         return []
-    d = base.model.dof(excitation.point, excitation.dof)
-    unit = np.zeros(base.model.size)
+    d = model.dof(excitation.point, excitation.dof)
+    unit = np.zeros(model.size)
     unit[d] = 1.0
-    k_static = 1.0 / float(splu(base.model.stiffness().tocsc()).solve(unit)[d])
+    k_static = 1.0 / float(splu(model.stiffness().tocsc()).solve(unit)[d])
     values = k_static * np.logspace(-4, 1, GRID_POINTS)
     return [sweep(base, STINGER_STIFFNESS, excitation.point, values, 0, True, {"dof": excitation.dof})]
 
 
 def _axial_curves(base: Baseline) -> list[Curve | None]:
+    frame, _ = base.planar
     curves = []
-    for i, m in enumerate(base.frame.members):
-        euler = math.pi ** 2 * _bending(base.frame, i) / member_length(base.frame, m) ** 2
+    for i, m in enumerate(frame.members):
+        euler = math.pi ** 2 * _bending(frame, i) / member_length(frame, m) ** 2
         values = np.unique(np.concatenate([np.linspace(-0.6, 0.0, 10), np.linspace(0.0, 2.0, 16)])) * euler
         curves.append(sweep(base, AXIAL_PRESTRESS, m.name, values, int(np.flatnonzero(values == 0.0)[0]), False))
     return curves
 
 
-def _joint_curves(base: Baseline) -> list[Curve | None]:
+def joint_curves(base: Baseline) -> list[Curve | None]:
+    """Each joint's modulus factor from 0.1 to 10, and every joint's at once (frames and matrix models)."""
     values = np.logspace(-1, 1, 2 * (GRID_POINTS // 2) + 1)
-    curves = [sweep(base, JOINT_STIFFNESS_SHIFT, j.name, values, values.size // 2, True) for j in base.frame.joints]
-    if len(base.frame.joints) > 1:  # every joint at once (where null): the file's joint model itself is off
+    curves = [sweep(base, JOINT_STIFFNESS_SHIFT, j, values, values.size // 2, True) for j in base.frame.joint_names]
+    if len(base.frame.joint_names) > 1:  # every joint at once (where null): the file's joint model itself is off
         curves.append(sweep(base, JOINT_STIFFNESS_SHIFT, None, values, values.size // 2, True))
     return curves
 
 
 def _shear_curves(base: Baseline) -> list[Curve | None]:
-    frame = base.frame
+    frame, _ = base.planar
     if frame.beam_theory == "timoshenko":
         return []
     kappa = next((s.shear_coefficient for s in frame.sections.values() if s.shear_coefficient), 5.0 / 6.0)
@@ -114,7 +118,7 @@ def frame_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
     ``residual`` (n_measured,) relative frequency residual of the baseline and ``weight`` its
     inverse relative variance, for the added mass's screen.
     """
-    curves = (_support_curves(base) + _stinger_curves(base) + _axial_curves(base) + _joint_curves(base)
+    curves = (_support_curves(base) + _stinger_curves(base) + _axial_curves(base) + joint_curves(base)
               + _shear_curves(base) + _mass_curves(base, obs, residual, weight))
     return [c for c in curves if c is not None]
 
@@ -122,7 +126,8 @@ def frame_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
 def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray,
                reach_m: float) -> tuple[tuple[str, dict] | None, float]:
     """The place within ``reach_m`` of ``node`` whose coarse mass curve fits best, and its cost."""
-    frame, mesh = base.frame, base.model.mesh
+    frame, model = base.planar
+    mesh = model.mesh
     near = [place for n in range(len(mesh.node_xy)) if np.hypot(*(mesh.node_xy[n] - mesh.node_xy[node])) <= reach_m
             and (place := _place(frame, mesh, n)) is not None]
     best, best_cost = None, np.inf
@@ -141,7 +146,8 @@ def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
     the nodes within ``reach_m`` are fitted on a coarse exact grid and the best one gets the
     full grid: the screen is linear, a mass of 10 % of the frame is not.
     """
-    frame, model, mesh = base.frame, base.model, base.model.mesh
+    frame, model = base.planar
+    mesh = model.mesh
     shapes = model.expand(base.modes.shapes)[:, base.pairing]
     translation = shapes[0::3] ** 2 + shapes[1::3] ** 2  # (n_nodes, n_measured): -0.5 m T per kg
     scores = np.array([explained(-0.5 * translation[node], residual, weight) for node in range(len(mesh.node_xy))])

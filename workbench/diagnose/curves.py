@@ -1,9 +1,9 @@
 """Exact frequencies of the frame changed by one effect, on a grid of the effect's parameter.
 
-Each candidate is the nominal frame changed by `workbench.rig.effects.apply_effect` with one
-parameter. The frequencies are computed exactly at each grid value, tracked by MAC from the
-no-effect end outward, and interpolated by a cubic spline in the parameter (or its logarithm), so
-that fits are then cheap.
+Each candidate is the nominal frame changed by `workbench.rig.effects.apply_effect` (a matrix
+model by `apply_matrix_effect`) with one parameter. The frequencies are computed exactly at each
+grid value, tracked by MAC from the no-effect end outward, and interpolated by a cubic spline in
+the parameter (or its logarithm), so that fits are then cheap.
 """
 
 from __future__ import annotations
@@ -15,9 +15,11 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from workbench.diagnose.baseline import Baseline
-from workbench.model.assembly import Model, assemble
-from workbench.model.modal import Modes, model_modes
-from workbench.rig.effects import Effect, EffectKind, apply_effect
+from workbench.model.assembly import assemble
+from workbench.model.matrix_model import MatrixModel
+from workbench.model.modal import Modes
+from workbench.model.structure import Structure, structure_modes
+from workbench.rig.effects import Effect, EffectKind, apply_effect, apply_matrix_effect
 from workbench.uq.stochastic import track_modes
 
 __all__ = ["Curve", "sweep"]
@@ -84,10 +86,11 @@ def sweep(base: Baseline, kind: EffectKind, where: str | None, values: np.ndarra
     fixed = dict(fixed or {})
     out = np.full((values.size, base.count), np.nan)
 
-    def solve(v: float) -> tuple[Model, Modes]:
-        frame = apply_effect(base.frame, Effect(kind.name, where, {parameter: float(v), **fixed}))
-        model = assemble(frame)
-        return model, model_modes(model, base.count + 2)
+    def solve(v: float) -> tuple[Structure, Modes]:
+        effect = Effect(kind.name, where, {parameter: float(v), **fixed})
+        model = (apply_matrix_effect(base.frame, effect) if isinstance(base.frame, MatrixModel)
+                 else assemble(apply_effect(base.frame, effect)))
+        return model, structure_modes(model, base.count + 2)
 
     try:
         model, modes = solve(values[start])

@@ -41,9 +41,11 @@ from workbench.diagnose.candidates import frame_curves
 from workbench.diagnose.curves import Curve
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.localise import Region, energy_shares, localise
+from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import DAMPING_FLOOR, RELATIVE_FLOOR, Observations, frequency_chi2, observations
 from workbench.extraction.records import MeasuredModes
 from workbench.model.frame import Frame
+from workbench.model.matrix_model import MatrixModel
 from workbench.rig.effects import AMPLITUDE_SOFTENING, EFFECTS, JOINT_DAMPING, JOINT_STIFFNESS_SHIFT, NONE, UNEXPLAINED
 
 __all__ = ["GAP_RATIO", "EXPLAINED_RATIO", "MIN_SHRINKAGE", "Diagnosis", "diagnose", "diagnosis_record"]
@@ -101,8 +103,8 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
             ranking.append(fit)
             predictions[(fit.effect, fit.where)] = in_f
     if obs.damping is not None:
-        for j, joint in enumerate(base.frame.joints):
-            fit, _ = evaluate(JOINT_DAMPING.name, joint.name, lambda u: {}, JOINT_DAMPING.channel, None,
+        for j, joint in enumerate(base.frame.joint_names):
+            fit, _ = evaluate(JOINT_DAMPING.name, joint, lambda u: {}, JOINT_DAMPING.channel, None,
                               partial(damping_fit, obs, joint_share[j]), obs, baseline_hz, 1)
             ranking.append(fit)
             predictions[(fit.effect, fit.where)] = baseline_hz
@@ -147,13 +149,13 @@ def _verdict(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candidate
     return verdict, where, shrinkage, best_hz, {"frequency": n_f, "damping": n_d}
 
 
-def diagnose(frame: Frame, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
+def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
              relative_floor: float = RELATIVE_FLOOR, damping_floor: float = DAMPING_FLOOR) -> Diagnosis:
     """Locate, name and measure the gap between ``frame`` and a campaign's modes (module docstring).
 
     Parameters
     ----------
-    frame : the nominal model (the campaign's frame file), joints at their mean modulus.
+    frame : the nominal model (the campaign's frame file or matrix model), joints at their mean modulus.
     measured : the measured modes (per test, with damping and amplitudes when known, or published means).
     notify : called with a short message before each stage.
     relative_floor, damping_floor : floors of the relative standard errors of the mean frequencies
@@ -183,7 +185,8 @@ def diagnose(frame: Frame, measured: MeasuredModes, notify: Callable[[str], None
     regions = localise(base, obs, baseline_hz, damping_residual, shares)
 
     say("candidate effects: exact frequencies on parameter grids")
-    curves = frame_curves(base, obs, residual, weight)
+    curves = (matrix_curves(base, obs, residual, weight) if isinstance(frame, MatrixModel)
+              else frame_curves(base, obs, residual, weight))
     ranking, predictions = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping, shares[0])
     verdict, where, shrinkage, best_hz, counts = _verdict(obs, baseline_hz, baseline_fit, ranking, predictions)
     return Diagnosis(measured.modes, obs.amplitude, obs.frequency_hz, obs.frequency_se, baseline_hz, best_hz,

@@ -18,11 +18,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numpy as np
+import scipy.sparse as sp
+
 from workbench.model.frame import Frame, GroundSpring, Joint, PointMass, member_length
+from workbench.model.matrix_model import MatrixModel
 
 __all__ = ["EffectKind", "EFFECTS", "NONE", "SUPPORT_COMPLIANCE", "ADDED_MASS", "SHEAR_DEFORMATION",
            "STINGER_STIFFNESS", "AXIAL_PRESTRESS", "JOINT_STIFFNESS_SHIFT", "AMPLITUDE_SOFTENING", "JOINT_DAMPING",
-           "OUTSIDE_VOCABULARY", "UNEXPLAINED", "DAMAGE_JOINT", "Effect", "apply_effect", "set_member"]
+           "OUTSIDE_VOCABULARY", "UNEXPLAINED", "DAMAGE_JOINT", "Effect", "apply_effect", "set_member",
+           "MATRIX_EFFECTS", "node_name", "apply_matrix_effect"]
 
 DAMAGE_JOINT = "_damage"  # the joint zone that stands for an outside-vocabulary damaged zone
 UNEXPLAINED = "unexplained"  # the verdict on a gap no effect of the vocabulary explains; not injectable
@@ -264,3 +269,54 @@ def apply_effect(frame: Frame, effect: Effect | None) -> Frame:
     if apply is None:
         raise ValueError(f"effect {effect.type!r} is not handled")
     return apply(frame, effect.where, dict(effect.parameters))
+
+
+# CONTRACTS.md section 3: on a matrix model the effects that need a frame's geometry are no candidates
+MATRIX_EFFECTS = (ADDED_MASS, STINGER_STIFFNESS, JOINT_STIFFNESS_SHIFT, AMPLITUDE_SOFTENING, JOINT_DAMPING)
+TRANSLATIONS = ("ux", "uy", "uz")
+
+
+def node_name(node: int) -> str:
+    """A matrix model's place in records: ``"node 1042"``."""
+    return f"node {int(node)}"
+
+
+def _node_of(model: MatrixModel, where: str | None) -> int:
+    text = (where or "").removeprefix("node ").strip()
+    if not text.isdigit() or not model.dofs.node_components(int(text)):
+        raise ValueError(f"{model.source}: {where!r} is not a node of the model (\"node N\", N in dofs.csv)")
+    return int(text)
+
+
+def apply_matrix_effect(model: MatrixModel, effect: Effect | None) -> MatrixModel:
+    """A matrix model changed by a model-level effect of `MATRIX_EFFECTS` (joint-level ones return it as is).
+
+    ``where``: a joint's name (None: every joint) for ``joint_stiffness_shift``; ``"node N"`` for
+    ``added_mass`` (``mass`` kg on each translation the node has) and ``stinger_stiffness``
+    (``stiffness`` N/m on the excitation's dof, which must be at that node).
+    """
+    if effect is None or effect.type == NONE.name:
+        return model
+    if effect.kind not in MATRIX_EFFECTS:
+        raise ValueError(f"{model.source}: {effect.type} needs a frame's geometry; no candidate on a matrix model")
+    p = effect.parameters
+    if effect.type == JOINT_STIFFNESS_SHIFT.name:
+        if effect.where is not None and effect.where not in model.joint_names:
+            raise KeyError(f"{model.source}: no joint named {effect.where!r}")
+        factor = np.array([float(p["factor"]) if effect.where in (None, n) else 1.0 for n in model.joint_names])
+        return replace(model, joints=tuple(replace(j, youngs_modulus=j.youngs_modulus * f)
+                                           for j, f in zip(model.joints, factor)),
+                       stiffness_joints=tuple((f * k).tocsr() for f, k in zip(factor, model.stiffness_joints)))
+    if effect.type in (AMPLITUDE_SOFTENING.name, JOINT_DAMPING.name):
+        if effect.where not in model.joint_names:
+            raise KeyError(f"{model.source}: no joint named {effect.where!r}")
+        return model
+    node = _node_of(model, effect.where)
+    if effect.type == ADDED_MASS.name:
+        rows = [r for c in TRANSLATIONS if (r := model.dofs.find(node, c)) is not None]
+        extra = sp.csr_matrix((np.full(len(rows), float(p["mass"])), (rows, rows)), shape=model.mass.shape)
+        return replace(model, mass=(model.mass + extra).tocsr())
+    if model.excitation is None or int(model.dofs.nodes[model.excitation]) != node:
+        raise ValueError(f"{model.source}: stinger_stiffness at {effect.where!r}, which is not the excitation")
+    spring = sp.csr_matrix(([float(p["stiffness"])], ([model.excitation], [model.excitation])), shape=model.mass.shape)
+    return replace(model, stiffness_rest=(model.stiffness_rest + spring).tocsr())

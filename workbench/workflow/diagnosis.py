@@ -19,7 +19,6 @@ from workbench.io.campaign import Campaign, load_campaign
 from workbench.io.outputs import csv_text, json_text
 from workbench.model.frame import Frame
 from workbench.model.frame_file import read_frame
-from workbench.model.matrix_model import MatrixModel
 from workbench.progress import Progress
 from workbench.tasks import Mapper, serial_mapper
 from workbench.workflow.measured import measured_modes
@@ -51,9 +50,6 @@ def diagnose_campaign(path: str | Path, count: int | None = None,
     notify : called with a short message before each stage.
     """
     campaign = load_campaign(path)
-    if isinstance(campaign.frame, MatrixModel):
-        raise ValueError(f"{path}: frame: {campaign.frame_file} is a matrix model; the diagnosis edits a frame's "
-                         "geometry and runs on frame files only for now")
     if notify:
         notify("modes of every test (modes.csv or circle fit)")
     measured = measured_modes(campaign, count, "diagnose")
