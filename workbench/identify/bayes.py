@@ -38,6 +38,7 @@ from scipy.optimize import minimize
 
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values, check_moments, joint_groups
+from workbench.identify.laplace import LaplaceLikelihood, laplace_likelihood
 from workbench.identify.likelihood import COV_BOUNDS, MODULUS_BOUNDS_PA, SIGMA_BOUNDS, LikelihoodModel, likelihood_model
 from workbench.model.structure import Structure
 from workbench.progress import Progress, report
@@ -95,7 +96,8 @@ def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarr
     return sampler
 
 
-def _start(lm: LikelihoodModel, walkers: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
+           rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Maximum a posteriori point and walkers drawn from the Laplace approximation there.
 
     The MAP by L-BFGS-B (gradient by central differences, one vectorised call); the covariance
@@ -261,7 +263,8 @@ def _inference_data(samples: dict[str, np.ndarray], lp: np.ndarray, measured: Me
 
 def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None, *,
                    start: Values | None = None, walkers: int | None = None, steps: int = 3000, burn: int = 500,
-                   seed: int = 0, forward: str = "exact", progress: Progress | None = None) -> Posterior:
+                   seed: int = 0, forward: str = "exact", integration: str = "auto",
+                   progress: Progress | None = None) -> Posterior:
     """Bayesian identification of each joint group's mean modulus and CoV from every test (module notes).
 
     Parameters
@@ -273,7 +276,11 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
     walkers : emcee walkers (default 4 x dims, at least 32, even).
     steps, burn : kept and discarded steps per walker.
     seed : seeds the walkers' start and emcee; written into the result.
-    forward : "exact" or "smr2" values in the forward table.
+    forward : "exact" or "smr2" values in the forward table (tensor-rule integration).
+    integration : how each test's latent moduli are integrated out: ``"quadrature"`` (adaptive
+        Gauss-Hermite on a tensor table, one or two joints, `workbench.identify.likelihood`),
+        ``"laplace"`` (any number, `workbench.identify.laplace`; the result's ``forward`` is then
+        ``"anchored"``) or ``"auto"``: quadrature up to two joints, Laplace above.
     progress : called after each emcee step (`run_ensemble`, `workbench.progress`).
 
     Raises
@@ -284,7 +291,14 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
     """
     t0 = time.perf_counter()
     check_moments(measured)
-    lm, forward_error = likelihood_model(model, measured, groups, start, forward)  # refuses published moments
+    if integration not in ("auto", "quadrature", "laplace"):
+        raise ValueError(f"integration: {integration!r} is not one of auto, quadrature, laplace")
+    lm: LikelihoodModel | LaplaceLikelihood
+    if integration == "laplace" or (integration == "auto" and len(model.joint_names) > 2):
+        lm, forward_error = laplace_likelihood(model, measured, groups, start)  # refuses published moments
+        forward = "anchored"
+    else:
+        lm, forward_error = likelihood_model(model, measured, groups, start, forward)
     groups = groups or joint_groups(model)
     ndim = lm.ndim
     walkers = walkers or max(32, 4 * ndim)

@@ -50,7 +50,7 @@ exact solutions: 7.5 ms each, 21 (one joint, degree 20 over Y0 exp(+-1.5)) or 16
 degree 12 over Y0 exp(+-1)) of them. The table's interpolation error is checked at run time
 against its source on points between the nodes and reported as ``Posterior.forward_error``
 (2e-11 one joint, 1e-9 two joints). Frames with more than two joints are refused (a 4-D table and
-4-D rule would not fit the time budget).
+4-D rule would not fit the time budget): `workbench.identify.laplace` integrates any number by Laplace.
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ from workbench.identify.surrogate import ForwardTable, forward_table, frequencie
 from workbench.model.structure import Structure, structure_at_moduli
 
 __all__ = ["MODULUS_BOUNDS_PA", "COV_BOUNDS", "SIGMA_BOUNDS", "GH_POINTS", "gamma_log_density", "LikelihoodModel",
-           "likelihood_model"]
+           "Prepared", "prepare", "likelihood_model"]
 
 MODULUS_BOUNDS_PA = (1e8, 1e12)
 COV_BOUNDS = (0.005, 0.6)
@@ -236,6 +236,53 @@ def _gauss_hermite(r: int) -> tuple[np.ndarray, np.ndarray]:
     return nodes, log_w
 
 
+@dataclass(frozen=True)
+class Prepared:
+    """What every integration of the likelihood starts from (`prepare`).
+
+    Attributes
+    ----------
+    groups : the joint groups; joint_group : (r,) group index of each joint.
+    reference_pa : (n_groups,) ``Y0_g``, the preliminary fit; f_obs, mask : (T, K) frequencies (0 where
+    missing) and where they exist; modes : (K,) model mode index (0 = lowest) of each measured mode.
+    """
+
+    groups: JointGroups
+    joint_group: np.ndarray
+    reference_pa: np.ndarray
+    f_obs: np.ndarray
+    mask: np.ndarray
+    modes: np.ndarray
+
+
+def prepare(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
+            start: Values | None = None) -> Prepared:
+    """The checks and the preliminary fit shared by both integrations of the likelihood.
+
+    Raises
+    ------
+    ValueError
+        Moments that cannot be identified from (`check_moments`), published moments only, a bad ``start``.
+    """
+    check_moments(measured)
+    if measured.published:
+        raise ValueError(f"{measured.source or 'campaign'}: bayes needs every test's frequencies (modes.csv or FRFs); "
+                         "this campaign has only published moments (moments.csv)")
+    groups = groups or joint_groups(model)
+    start_pa = np.asarray(start if start is not None else groups.nominal_pa, float)
+    if start_pa.shape != (len(groups.groups),) or np.any(start_pa <= 0):
+        raise ValueError(f"start: expected {len(groups.groups)} positive moduli (one per group "
+                         f"{list(groups.groups)}), got {start}")
+    joint_group = np.empty(len(model.joint_names), int)
+    for g, members in enumerate(groups.members):
+        joint_group[list(members)] = g
+    ref_pa = reference_fit(model, measured, groups, start_pa)
+    f_obs = np.asarray(measured.frequency_hz, float)
+    mask = np.isfinite(f_obs)
+    return Prepared(groups, joint_group, ref_pa, np.where(mask, f_obs, 0.0), mask,
+                    np.asarray(measured.modes, int) - 1)
+
+
 def likelihood_model(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
                      start: Values | None = None, forward: str = "exact") -> tuple[LikelihoodModel, float]:
     """The `LikelihoodModel` of a campaign: reference fit, forward table, Newton starts.
@@ -256,39 +303,24 @@ def likelihood_model(model: Structure, measured: MeasuredModes, groups: JointGro
     Raises
     ------
     ValueError
-        Moments that cannot be identified from (`check_moments`), published moments only, a bad
-        ``start``, more than two random joints.
+        As `prepare`, and more than two random joints (`workbench.identify.laplace` takes any number).
     """
-    check_moments(measured)
-    if measured.published:
-        raise ValueError(f"{measured.source or 'campaign'}: bayes needs every test's frequencies (modes.csv or FRFs); "
-                         "this campaign has only published moments (moments.csv)")
-    groups = groups or joint_groups(model)
-    start_pa = np.asarray(start if start is not None else groups.nominal_pa, float)
-    if start_pa.shape != (len(groups.groups),) or np.any(start_pa <= 0):
-        raise ValueError(f"start: expected {len(groups.groups)} positive moduli (one per group "
-                         f"{list(groups.groups)}), got {start}")
     n_joints = len(model.joint_names)
     if n_joints not in Z_HALF_RANGE:
-        raise ValueError(f"{measured.source or 'campaign'}: bayes integrates one or two random joints per test; "
-                         f"this frame has {n_joints} ({', '.join(model.joint_names)})")
-    joint_group = np.empty(n_joints, int)
-    for g, members in enumerate(groups.members):
-        joint_group[list(members)] = g
-    ref_pa = reference_fit(model, measured, groups, start_pa)
-    y0 = ref_pa[joint_group]
-    f_obs = np.asarray(measured.frequency_hz, float)
-    mask = np.isfinite(f_obs)
-    f_obs = np.where(mask, f_obs, 0.0)
-    modes = np.asarray(measured.modes, int) - 1
+        raise ValueError(f"{measured.source or 'campaign'}: the tensor rule integrates one or two random joints per "
+                         f"test; this frame has {n_joints} ({', '.join(model.joint_names)}): use the Laplace "
+                         "integration (workbench.identify.laplace)")
+    p = prepare(model, measured, groups, start)
+    y0 = p.reference_pa[p.joint_group]
     half = Z_HALF_RANGE[n_joints]
     lower, upper = np.full(n_joints, -half), np.full(n_joints, half)
-    table = forward_table(model, modes, y0, lower, upper, source=forward)
+    table = forward_table(model, p.modes, y0, lower, upper, source=forward)
     # interpolation check between the nodes
     fractions = np.array([0.07, 0.29, 0.537, 0.71, 0.93])
     probe = lower + (upper - lower) * np.stack([fractions, fractions[::-1]][:n_joints], axis=1)
-    truth = frequencies_at(structure_at_moduli(model, y0), modes, np.exp(probe), forward)
+    truth = frequencies_at(structure_at_moduli(model, y0), p.modes, np.exp(probe), forward)
     forward_error = float(np.max(np.abs(table(probe) / truth - 1.0)))
-    z_start = _test_estimates(table, f_obs, mask)
-    lm = LikelihoodModel(table, f_obs, mask, np.asarray(measured.mean_hz, float), joint_group, ref_pa, z_start)
+    z_start = _test_estimates(table, p.f_obs, p.mask)
+    lm = LikelihoodModel(table, p.f_obs, p.mask, np.asarray(measured.mean_hz, float), p.joint_group,
+                         p.reference_pa, z_start)
     return lm, forward_error

@@ -191,9 +191,6 @@ def _bayes_refusal(campaign, data: MeasuredModes, bayes: bool) -> str:
     if not data.has_tests:
         return ("not run: the campaign holds only published moments, and the full likelihood needs every "
                 "test's frequencies")
-    if len(campaign.frame.joints) > 2:  # workbench.identify.bayes integrates one or two latent joint moduli per test
-        return (f"not run: the frame has {len(campaign.frame.joints)} random joints; the Bayesian estimator "
-                "integrates at most two per test (a 4-D rule would not fit its time budget)")
     return ""
 
 
