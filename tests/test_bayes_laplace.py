@@ -91,3 +91,18 @@ def test_four_joints_each_its_own_group_are_identified():
     np.testing.assert_allclose(post.cov, sample_cov, rtol=0.35)
     assert np.all(np.isfinite(post.youngs_modulus_ci95)) and np.all(np.isfinite(post.cov_ci95))
     assert wall < 120
+
+
+def test_a_fit_listed_group_by_group_is_written_in_the_frame_order():
+    from workbench.identify.record import identification_record
+    from workbench.model.frame_file import read_frame
+
+    frame = read_frame(FOUR_BOLT)  # groups: vertical (L1, L4), horizontal (L2, L3)
+
+    class GroupOrdered:
+        def joint_records(self):
+            entry = {"youngs_modulus": 1e10, "cov": 0.1, "youngs_modulus_ci95": None, "cov_ci95": None}
+            return {name: dict(entry) for name in ("L1", "L4", "L2", "L3")}
+
+    record = identification_record("four-bolt", "bayes", frame, GroupOrdered(), [1, 2], 1.0)
+    assert list(record["joints"]) == ["L1", "L2", "L3", "L4"]

@@ -48,6 +48,8 @@ def identification_record(campaign_name: str, method: str, frame: Frame | Matrix
         joints = {name: {"youngs_modulus": float(fit.mean_pa[group_of[j]]), "cov": float(fit.cov[group_of[j]]),
                                "youngs_modulus_ci95": pair(mean_ci, group_of[j]), "cov_ci95": pair(cov_ci, group_of[j])}
                   for j, name in enumerate(frame.joint_names) if j in group_of}
+    if set(joints) == set(frame.joint_names):  # a fit lists its joints group by group: written in the frame's order
+        joints = {name: joints[name] for name in frame.joint_names}
     if list(joints) != list(frame.joint_names):
         raise ValueError(f"{frame.source}: the fit's joints {list(joints)} are not the frame's "
                          f"{list(frame.joint_names)}")
