@@ -36,15 +36,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import gammaln
 
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values
 from workbench.identify.likelihood import (
-    COV_BOUNDS,
     LOG_2PI,
-    MODULUS_BOUNDS_PA,
-    SIGMA_BOUNDS,
+    PopulationModel,
     gamma_log_density,
     prepare,
 )
@@ -150,7 +147,7 @@ def forward_error(model: Structure, forward: AnchoredForward, modes: np.ndarray,
 
 
 @dataclass(frozen=True)
-class LaplaceLikelihood:
+class LaplaceLikelihood(PopulationModel):
     """The log-posterior with each test's moduli integrated by Laplace; the same parameters and
     priors as `workbench.identify.likelihood.LikelihoodModel`: ``theta`` (..., 2 G + K) is
     ``log(E_g / Y0_g)``, ``log c_g``, ``log sigma_k``.
@@ -170,39 +167,11 @@ class LaplaceLikelihood:
     reference_pa: np.ndarray
     z_start: np.ndarray
 
-    @property
-    def n_groups(self) -> int:
-        return self.reference_pa.size
-
-    @property
-    def ndim(self) -> int:
-        return 2 * self.n_groups + self.fbar.size
-
-    def _split(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        g = self.n_groups
-        return theta[:, :g], theta[:, g:2 * g], theta[:, 2 * g:]
-
-    def log_prior(self, theta: np.ndarray) -> np.ndarray:
-        """Log prior density of ``theta`` (N, D) up to a constant; -inf outside the bounds."""
-        eps, log_c, log_s = self._split(theta)
-        log_e = eps + np.log(self.reference_pa)
-        inside = (np.all((log_e > math.log(MODULUS_BOUNDS_PA[0])) & (log_e < math.log(MODULUS_BOUNDS_PA[1])), axis=1)
-                  & np.all((log_c > math.log(COV_BOUNDS[0])) & (log_c < math.log(COV_BOUNDS[1])), axis=1)
-                  & np.all((log_s > math.log(SIGMA_BOUNDS[0])) & (log_s < math.log(SIGMA_BOUNDS[1])), axis=1))
-        return np.where(inside, log_c.sum(axis=1), -np.inf)
-
     def test_log_likelihood(self, theta: np.ndarray) -> np.ndarray:
         """``log p(f_t | theta)`` with the latent moduli integrated out by Laplace, (N, T)."""
         theta = np.atleast_2d(np.asarray(theta, float))
-        eps, log_c, log_s = self._split(theta)
-        jg = self.joint_group
-        r = jg.size
-        a = np.exp(-2.0 * log_c[:, jg])[:, None, :]  # (N, 1, r) Gamma shape
-        log_th = (eps[:, jg] + 2.0 * log_c[:, jg])[:, None, :]
-        log_sd = log_s + np.log(self.fbar)  # (N, K)
-        w = np.exp(-2.0 * log_sd)[:, None, :] * self.mask  # (N, T, K)
-        const = -(self.mask @ (log_sd + 0.5 * LOG_2PI).T).T  # (N, T)
-        norm = -gammaln(a).sum(axis=-1)  # (N, 1)
+        a, log_th, w, const, norm = self.population(theta)
+        r = self.joint_group.size
         z = np.broadcast_to(self.z_start, (theta.shape[0],) + self.z_start.shape).copy()
         eye = np.eye(r)
         for it in range(NEWTON_STEPS + 1):
@@ -228,17 +197,6 @@ class LaplaceLikelihood:
         sign, log_det = np.linalg.slogdet(hess)
         laplace = np.where(sign > 0, 0.5 * r * LOG_2PI - 0.5 * log_det, -np.inf)
         return data + prior + laplace + const + norm
-
-    def log_posterior(self, theta: np.ndarray) -> np.ndarray:
-        """Unnormalised log posterior, (N,) for ``theta`` (N, D); -inf outside the prior's support."""
-        theta = np.atleast_2d(np.asarray(theta, float))
-        lp = self.log_prior(theta)
-        ok = np.isfinite(lp)
-        out = np.full(theta.shape[0], -np.inf)
-        if np.any(ok):
-            ll = self.test_log_likelihood(theta[ok]).sum(axis=1)
-            out[ok] = np.where(np.isfinite(ll), lp[ok] + ll, -np.inf)
-        return out
 
 
 def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,

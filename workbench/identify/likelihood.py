@@ -69,7 +69,7 @@ from workbench.identify.surrogate import ForwardTable, forward_table, frequencie
 from workbench.model.structure import Structure, structure_at_moduli
 
 __all__ = ["MODULUS_BOUNDS_PA", "COV_BOUNDS", "SIGMA_BOUNDS", "GH_POINTS", "gamma_log_density", "LikelihoodModel",
-           "Prepared", "prepare", "likelihood_model"]
+           "PopulationModel", "Prepared", "prepare", "likelihood_model"]
 
 MODULUS_BOUNDS_PA = (1e8, 1e12)
 COV_BOUNDS = (0.005, 0.6)
@@ -114,28 +114,17 @@ def _test_estimates(table: ForwardTable, f_obs: np.ndarray, mask: np.ndarray, it
     return z
 
 
-@dataclass(frozen=True)
-class LikelihoodModel:
-    """The data and fixed pieces of the log-posterior; parameters ``theta`` (..., n_groups * 2 + n_modes):
-    ``log(E_g / Y0_g)``, ``log c_g``, ``log sigma_k``.
-
-    Attributes
-    ----------
-    table : the forward model.
-    f_obs : (T, K) measured frequencies (0 where missing); mask : (T, K) True where measured.
-    fbar : (K,) mode means, the scale of the relative errors.
-    joint_group : (r,) group index of each random joint.
-    reference_pa : (n_groups,) ``Y0_g``.
-    z_start : (T, r) Newton's starting points (each test's data-only estimate).
+class PopulationModel:
+    """What both integrations of the likelihood share: the parameters ``theta`` (N, 2 G + K), ``log(E_g /
+    Y0_g)``, ``log c_g``, ``log sigma_k``, their priors, and the log-posterior from the subclass's
+    ``test_log_likelihood`` (N, T). Subclasses hold ``reference_pa`` (G,), ``fbar`` (K,), ``mask`` (T, K)
+    and ``joint_group`` (r,).
     """
 
-    table: ForwardTable
-    f_obs: np.ndarray
-    mask: np.ndarray
-    fbar: np.ndarray
-    joint_group: np.ndarray
     reference_pa: np.ndarray
-    z_start: np.ndarray
+    fbar: np.ndarray
+    mask: np.ndarray
+    joint_group: np.ndarray
 
     @property
     def n_groups(self) -> int:
@@ -159,19 +148,63 @@ class LikelihoodModel:
         # uniform in c: density of log c is proportional to c; log-uniform E and sigma: flat
         return np.where(inside, log_c.sum(axis=1), -np.inf)
 
+    def population(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Per joint the Gamma shape ``a`` and log scale (N, 1, r), per test and mode the data weight
+        ``w`` (N, T, K), and the normalising constants of the data (N, T) and of the Gamma laws (N, 1).
+        """
+        eps, log_c, log_s = self._split(theta)
+        jg = self.joint_group
+        a = np.exp(-2.0 * log_c[:, jg])[:, None, :]
+        log_th = (eps[:, jg] + 2.0 * log_c[:, jg])[:, None, :]  # log scale of Y / Y0
+        log_sd = log_s + np.log(self.fbar)  # (N, K)
+        w = np.exp(-2.0 * log_sd)[:, None, :] * self.mask
+        const = -(self.mask @ (log_sd + 0.5 * LOG_2PI).T).T
+        norm = -gammaln(a).sum(axis=-1)
+        return a, log_th, w, const, norm
+
+    def test_log_likelihood(self, theta: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def log_posterior(self, theta: np.ndarray) -> np.ndarray:
+        """Unnormalised log posterior, (N,) for ``theta`` (N, D); -inf outside the prior's support."""
+        theta = np.atleast_2d(np.asarray(theta, float))
+        lp = self.log_prior(theta)
+        ok = np.isfinite(lp)
+        out = np.full(theta.shape[0], -np.inf)
+        if np.any(ok):
+            ll = self.test_log_likelihood(theta[ok]).sum(axis=1)
+            out[ok] = np.where(np.isfinite(ll), lp[ok] + ll, -np.inf)
+        return out
+
+
+@dataclass(frozen=True)
+class LikelihoodModel(PopulationModel):
+    """The data and fixed pieces of the log-posterior; parameters ``theta`` (..., n_groups * 2 + n_modes):
+    ``log(E_g / Y0_g)``, ``log c_g``, ``log sigma_k``.
+
+    Attributes
+    ----------
+    table : the forward model.
+    f_obs : (T, K) measured frequencies (0 where missing); mask : (T, K) True where measured.
+    fbar : (K,) mode means, the scale of the relative errors.
+    joint_group : (r,) group index of each random joint.
+    reference_pa : (n_groups,) ``Y0_g``.
+    z_start : (T, r) Newton's starting points (each test's data-only estimate).
+    """
+
+    table: ForwardTable
+    f_obs: np.ndarray
+    mask: np.ndarray
+    fbar: np.ndarray
+    joint_group: np.ndarray
+    reference_pa: np.ndarray
+    z_start: np.ndarray
+
     def test_log_likelihood(self, theta: np.ndarray) -> np.ndarray:
         """``log p(f_t | theta)`` with the latent moduli integrated out, (N, T)."""
         theta = np.atleast_2d(np.asarray(theta, float))
-        eps, log_c, log_s = self._split(theta)
-        jg = self.joint_group
-        r = jg.size
-        a = np.exp(-2.0 * log_c[:, jg])[:, None, :]  # (N, 1, r) Gamma shape
-        log_th = (eps[:, jg] + 2.0 * log_c[:, jg])[:, None, :]  # log scale of Y / Y0
-        log_sd = log_s + np.log(self.fbar)  # (N, K)
-        w = np.exp(-2.0 * log_sd)[:, None, :] * self.mask  # (N, T, K)
-        const = -(self.mask @ (log_sd + 0.5 * LOG_2PI).T).T  # (N, T)
-        norm = -gammaln(a).sum(axis=-1)  # (N, 1)
-
+        a, log_th, w, const, norm = self.population(theta)
+        r = self.joint_group.size
         z = np.broadcast_to(self.z_start, (theta.shape[0],) + self.z_start.shape).copy()
         lo, hi = self.table.lower - 1.0, self.table.upper + 1.0
         for it in range(NEWTON_STEPS + 1):
@@ -213,16 +246,6 @@ class LikelihoodModel:
         total = logsumexp(data + prior + log_w, axis=-1)
         return total + 0.5 * r * math.log(2.0) - log_det + const + norm
 
-    def log_posterior(self, theta: np.ndarray) -> np.ndarray:
-        """Unnormalised log posterior, (N,) for ``theta`` (N, D); -inf outside the prior's support."""
-        theta = np.atleast_2d(np.asarray(theta, float))
-        lp = self.log_prior(theta)
-        ok = np.isfinite(lp)
-        out = np.full(theta.shape[0], -np.inf)
-        if np.any(ok):
-            ll = self.test_log_likelihood(theta[ok]).sum(axis=1)
-            out[ok] = np.where(np.isfinite(ll), lp[ok] + ll, -np.inf)
-        return out
 
 
 @functools.lru_cache(maxsize=4)
