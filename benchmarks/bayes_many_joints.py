@@ -11,7 +11,11 @@ Lanczos on the assembled matrices, tracked by MAC, with 0.05 % relative noise:
 Prints wall time, the estimates against the sample values of the drawn moduli, the anchored
 forward model's error, R-hat and ESS. Run from the repository root:
 
-    python benchmarks/bayes_many_joints.py [--steps 1500] [--burn 500]
+    python benchmarks/bayes_many_joints.py [--steps 1500] [--burn 500] [--cases four many]
+
+The 20-joint case does not meet its target yet: with 20 latent moduli per test against 10
+frequencies, the per-mode errors' posterior runs towards zero and the chains mix slowly (over 10
+minutes, unconverged, on 2 cores).
 """
 
 from __future__ import annotations
@@ -84,18 +88,28 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--steps", type=int, default=1500)
     parser.add_argument("--burn", type=int, default=500)
+    parser.add_argument("--cases", nargs="+", choices=["four", "many"], default=["four", "many"],
+                        help="which campaigns (the 20-joint one takes over 10 minutes today)")
     args = parser.parse_args()
+    if "four" in args.cases:
+        four_joints(args.steps, args.burn)
+    if "many" in args.cases:
+        many_joints(args.steps, args.burn)
 
+
+def four_joints(steps: int, burn: int) -> None:
     four = assemble(read_frame(REPO / "frames" / "four_bolt.toml"))
     data, moduli = campaign(four, [24e9, 73.5e9, 73.5e9, 24e9], [0.09, 0.22, 0.22, 0.09], 24, 7)
     groups = JointGroups(tuple(four.joint_names), tuple((j,) for j in range(4)),
                          tuple(j.youngs_modulus for j in four.joints))
     wall, e_mean, e_cov, finite = report("four-bolt frame, 24 tests, each joint its own group", four, groups, data,
-                                         moduli, args.steps, args.burn)
+                                         moduli, steps, burn)
     print(f"  targets: means within 8 %: {'met' if e_mean <= 0.08 else 'MISSED'} ({e_mean:.1%}); CoVs within 35 %: "
           f"{'met' if e_cov <= 0.35 else 'MISSED'} ({e_cov:.1%}); finite intervals: {'met' if finite else 'MISSED'}; "
           f"under 120 s: {'met' if wall < 120 else 'MISSED'} ({wall:.0f} s; goal 30 s)")
 
+
+def many_joints(steps: int, burn: int) -> None:
     many = assemble(multibay_frame(5, 2, element_length=0.025))
     groups = joint_groups(many)
     laws = {"left": (24e9, 0.09), "right": (30e9, 0.15)}
@@ -103,7 +117,7 @@ def main() -> None:
     covs = [laws[j.group][1] for j in many.joints]
     data, moduli = campaign(many, means, covs, 40, 8)
     wall, e_mean, e_cov, finite = report(f"{len(many.joint_names)} joints ({many.size} dofs), 40 tests, two groups",
-                                         many, groups, data, moduli, args.steps, args.burn)
+                                         many, groups, data, moduli, steps, burn)
     print(f"  target: under 5 minutes: {'met' if wall < 300 else 'MISSED'} ({wall:.0f} s)")
 
 
