@@ -185,7 +185,7 @@ class Study:
         return campaign_label(self.campaign)
 
 
-def _bayes_refusal(campaign, data: MeasuredModes, bayes: bool) -> str:
+def _bayes_refusal(data: MeasuredModes, bayes: bool) -> str:
     if not bayes:
         return "not run: skipped on request (--no-bayes, or the demo's time budget)"
     if not data.has_tests:
@@ -238,7 +238,7 @@ def study_campaign(campaign, extraction: Extraction | None = None, *, seed: int 
                                                  f"CoV = {100 * s.cov:.3g} %" for g, s in sources.items()), fit.seed,
               wall_time_s=fit.wall_time_s)
 
-    posterior, bayes_note = None, _bayes_refusal(campaign, data, bayes)
+    posterior, bayes_note = None, _bayes_refusal(data, bayes)
     if not bayes_note:
         start = time.perf_counter()
         burn = min(500, bayes_steps // 4) if bayes_burn is None else bayes_burn
