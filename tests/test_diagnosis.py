@@ -260,3 +260,29 @@ def test_blind_validation_meets_the_issue_targets():
     assert summary["shrinkage_right_verdicts"]["median"] >= 0.60
     assert summary["none_right"].split("/")[0] == summary["none_right"].split("/")[1]
     assert summary["outside_right"].split("/")[0] == summary["outside_right"].split("/")[1]
+
+
+def test_a_damping_gap_alone_never_names_a_frequency_effect():
+    # issue 14: frequencies within scatter, damping well off; the best-ranked candidate is a
+    # frequency effect that fits the noise. It may not be named: only a damping candidate, or unexplained.
+    from workbench.diagnose.fitting import CandidateFit
+    from workbench.diagnose.observations import Observations
+    from workbench.diagnose.verdict import _verdict
+
+    modes = 4
+    f = np.full((1, modes), 100.0)
+    obs = Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-8, (1, 1, 1)),
+                       np.full((1, modes), 0.02), np.full((1, modes), 1e-4))
+
+    def fit(effect, channel, chi2, heldout_f, heldout_d, rms_f, rms_d):
+        return CandidateFit(effect, "A", {}, channel, chi2, heldout_f + heldout_d, heldout_f, heldout_d,
+                            rms_f, rms_f, rms_d, rms_d, 1, chi2)
+
+    baseline = fit("baseline", "frequency", 400.0 * modes, 1.0, 400.0 * modes, 1e-4, 0.01)
+    shift = fit("joint_stiffness_shift", "frequency", 1.0, 0.5, 400.0 * modes, 5e-5, 0.01)
+    damping = fit("joint_damping", "damping", 3.0, 1.0, 3.0, 1e-4, 1e-4)
+    verdict, where, _, _, _ = _verdict(obs, f.copy(), baseline, [shift, damping], {("joint_stiffness_shift", "A"): f,
+                                                                                     ("joint_damping", "A"): f})
+    assert (verdict, where) == ("joint_damping", "A")
+    verdict, _, _, _, _ = _verdict(obs, f.copy(), baseline, [shift], {("joint_stiffness_shift", "A"): f})
+    assert verdict == "unexplained"

@@ -135,12 +135,15 @@ def _verdict(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candidate
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
     chi2_f = frequency_chi2(obs, baseline_hz)
     chi2_d = baseline_fit.chi2 - chi2_f  # the damping baseline's in-sample part
-    gap = chi2_f > GAP_RATIO * n_f or (n_d > 1 and chi2_d > GAP_RATIO * (n_d - 1))
+    # each channel tested on its own: an effect may be named only where its own data show a gap
+    # (a damping gap alone once licensed a frequency effect that fitted the noise)
+    gaps = {"frequency": bool(chi2_f > GAP_RATIO * n_f), "damping": bool(n_d > 1 and chi2_d > GAP_RATIO * (n_d - 1))}
     verdict, where, shrinkage, best_hz = NONE.name, None, 0.0, None
-    if gap:
+    if any(gaps.values()):
         verdict = UNEXPLAINED
-        if ranking:
-            best = ranking[0]
+        eligible = [c for c in ranking if gaps[c.channel]]
+        if eligible:
+            best = eligible[0]
             shrink = _shrinkage(best, baseline_fit)
             held_channel = _channel_chi2(best, n_f, n_d)
             if held_channel <= EXPLAINED_RATIO and shrink >= MIN_SHRINKAGE:
