@@ -79,6 +79,7 @@ class Diagnosis:
     shrinkage: float
     observations_count: dict
     wall_time_s: float = 0.0
+    partial: dict | None = None  # with an unexplained verdict, the best partial explanation (or None)
 
 
 def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], baseline_hz: np.ndarray,
@@ -129,8 +130,13 @@ def _channel_chi2(fit: CandidateFit, n_f: int, n_d: int) -> float:
 
 
 def _verdict(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit, ranking: list[CandidateFit],
-             predictions: dict) -> tuple[str, str | None, float, np.ndarray | None, dict[str, int]]:
-    """``(verdict, where, shrinkage, best_hz, observation counts)`` (module docstring)."""
+             predictions: dict) -> tuple[str, str | None, float, np.ndarray | None, dict[str, int], dict | None]:
+    """``(verdict, where, shrinkage, best_hz, observation counts, partial)`` (module docstring).
+
+    ``partial``: with an ``unexplained`` verdict, the best candidate on a channel with a gap when its
+    held-out error shrinks at all (``effect``, ``where``, ``shrinkage``: CONTRACTS.md section 3's
+    optional key), else None.
+    """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
     chi2_f = frequency_chi2(obs, baseline_hz)
@@ -138,7 +144,7 @@ def _verdict(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candidate
     # each channel tested on its own: an effect may be named only where its own data show a gap
     # (a damping gap alone once licensed a frequency effect that fitted the noise)
     gaps = {"frequency": bool(chi2_f > GAP_RATIO * n_f), "damping": bool(n_d > 1 and chi2_d > GAP_RATIO * (n_d - 1))}
-    verdict, where, shrinkage, best_hz = NONE.name, None, 0.0, None
+    verdict, where, shrinkage, best_hz, partial = NONE.name, None, 0.0, None, None
     if any(gaps.values()):
         verdict = UNEXPLAINED
         eligible = [c for c in ranking if gaps[c.channel]]
@@ -149,7 +155,9 @@ def _verdict(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candidate
             if held_channel <= EXPLAINED_RATIO and shrink >= MIN_SHRINKAGE:
                 verdict, where, shrinkage = best.effect, best.where, shrink
                 best_hz = predictions[(best.effect, best.where)]
-    return verdict, where, shrinkage, best_hz, {"frequency": n_f, "damping": n_d}
+            elif shrink > 0.0:
+                partial = {"effect": best.effect, "where": best.where, "shrinkage": float(shrink)}
+    return verdict, where, shrinkage, best_hz, {"frequency": n_f, "damping": n_d}, partial
 
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
@@ -191,9 +199,11 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     curves = (matrix_curves(base, obs, residual, weight) if isinstance(frame, MatrixModel)
               else frame_curves(base, obs, residual, weight))
     ranking, predictions = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping, shares[0])
-    verdict, where, shrinkage, best_hz, counts = _verdict(obs, baseline_hz, baseline_fit, ranking, predictions)
+    verdict, where, shrinkage, best_hz, counts, partial = _verdict(obs, baseline_hz, baseline_fit, ranking,
+                                                                   predictions)
     return Diagnosis(measured.modes, obs.amplitude, obs.frequency_hz, obs.frequency_se, baseline_hz, best_hz,
-                     baseline_fit, ranking, regions, verdict, where, shrinkage, counts, time.perf_counter() - start)
+                     baseline_fit, ranking, regions, verdict, where, shrinkage, counts, time.perf_counter() - start,
+                     partial)
 
 
 def _ranking_entry(c: CandidateFit) -> dict:
@@ -218,7 +228,8 @@ def diagnosis_record(campaign_name: str, diagnosis: Diagnosis) -> dict:
         "localization": [{"region": r.region, "score": r.score, "kind": r.kind, "mechanism": r.mechanism}
                          for r in d.localisation],
         "ranking": [_ranking_entry(c) for c in d.ranking],
-        "verdict": {"effect": d.verdict, "where": d.where, "shrinkage": d.shrinkage},
+        "verdict": {"effect": d.verdict, "where": d.where, "shrinkage": d.shrinkage,
+                    **({"partial": d.partial} if d.verdict == UNEXPLAINED else {})},
         "protocol": "leave one mode out: each candidate refitted on the other modes predicts the held-out mode",
         "wall_time_s": d.wall_time_s,
     }
