@@ -106,3 +106,16 @@ def test_a_fit_listed_group_by_group_is_written_in_the_frame_order():
 
     record = identification_record("four-bolt", "bayes", frame, GroupOrdered(), [1, 2], 1.0)
     assert list(record["joints"]) == ["L1", "L2", "L3", "L4"]
+
+
+def test_sampler_diagnostics_flag_an_unconverged_posterior():
+    from types import SimpleNamespace
+
+    from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT, sampler_diagnostics
+
+    good = sampler_diagnostics(SimpleNamespace(rhat=np.array([1.002, 1.009]), ess=np.array([900.0, 450.0])))
+    assert good is not None and good["converged"] and good["limits"] == {"rhat_max": RHAT_LIMIT, "ess_min": ESS_LIMIT}
+    for rhat, ess in (([1.002, 1.02], [900.0, 900.0]), ([1.0, 1.0], [900.0, 399.0])):
+        bad = sampler_diagnostics(SimpleNamespace(rhat=np.array(rhat), ess=np.array(ess)))
+        assert bad is not None and not bad["converged"]
+    assert sampler_diagnostics(SimpleNamespace()) is None  # moment matching has no chains

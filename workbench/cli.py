@@ -20,7 +20,13 @@ from workbench import __version__
 from workbench.identify.bayes import Posterior, bayes_identify
 from workbench.identify.data import check_moments
 from workbench.identify.moments import MomentFit, moment_matching
-from workbench.identify.record import bound_failures, identification_record
+from workbench.identify.record import (
+    ESS_LIMIT,
+    RHAT_LIMIT,
+    bound_failures,
+    identification_record,
+    sampler_diagnostics,
+)
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
@@ -199,6 +205,13 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
                          + ": the data do not place it; --allow-bounds writes it flagged \"at_bound\": true")
     for failure in failures:
         warnings.warn(f"{args.campaign}: {failure} (written with \"at_bound\": true)", stacklevel=1)
+    diagnostics = sampler_diagnostics(fit)
+    if diagnostics is not None:
+        record["diagnostics"] = diagnostics
+        if not diagnostics["converged"]:
+            warnings.warn(f"{args.campaign}: the chains have not converged by the usual rule (max R-hat "
+                          f"{diagnostics['rhat_max']:.3f}, limit {RHAT_LIMIT}; min ESS {diagnostics['ess_min']:.0f}, "
+                          f"limit {ESS_LIMIT}): identification.json says \"converged\": false", stacklevel=1)
     files["identification.json"] = json_text(record)
     out.commit(files)
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"

@@ -8,10 +8,15 @@ from typing import Any
 from workbench.model.frame import Frame
 from workbench.model.matrix_model import MatrixModel
 
-__all__ = ["BOUND_TOLERANCE", "identification_record", "bound_failures"]
+__all__ = ["BOUND_TOLERANCE", "RHAT_LIMIT", "ESS_LIMIT", "identification_record", "bound_failures",
+           "sampler_diagnostics"]
 
 # CONTRACTS.md section 3: an estimate within 1 % of a bound of its search interval is a failed identification
 BOUND_TOLERANCE = 0.01
+# a sampled estimate is stood behind when every parameter's R-hat is at most this and its bulk
+# effective sample size at least that (Vehtari et al. 2021's thresholds)
+RHAT_LIMIT = 1.01
+ESS_LIMIT = 400
 
 
 def identification_record(campaign_name: str, method: str, frame: Frame | MatrixModel, fit: Any,
@@ -80,3 +85,19 @@ def bound_failures(record: dict, fit: Any) -> list[str]:
     """One message per joint whose estimate sits on a bound of its search interval (CONTRACTS.md section 3)."""
     return [f"joint {name!r}: {'; '.join(_at_bounds(entry, fit))}"
             for name, entry in record["joints"].items() if entry.get("at_bound")]
+
+
+def sampler_diagnostics(fit: Any) -> dict | None:
+    """``identification.json``'s ``diagnostics`` of a sampled fit, or None for a fit with no chains.
+
+    ``{"rhat_max", "ess_min", "converged", "limits"}``: ``converged`` is False unless every
+    parameter's R-hat is at most `RHAT_LIMIT` and its bulk ESS at least `ESS_LIMIT`, so that a
+    reader sees an unconverged posterior for what it is.
+    """
+    rhat, ess = getattr(fit, "rhat", None), getattr(fit, "ess", None)
+    if rhat is None or ess is None:
+        return None
+    rhat_max, ess_min = float(max(rhat)), float(min(ess))
+    return {"rhat_max": rhat_max, "ess_min": ess_min,
+            "converged": bool(rhat_max <= RHAT_LIMIT and ess_min >= ESS_LIMIT),
+            "limits": {"rhat_max": RHAT_LIMIT, "ess_min": ESS_LIMIT}}
