@@ -49,8 +49,8 @@ from workbench.model.modal import Modes
 from workbench.model.structure import Structure, structure_at_moduli, structure_energies, structure_modes
 from workbench.uq.stochastic import track_modes
 
-__all__ = ["AnchoredForward", "anchored_forward", "forward_error", "LaplaceLikelihood", "laplace_likelihood",
-           "NEWTON_STEPS", "ANCHOR_PRIOR_SD"]
+__all__ = ["AnchoredForward", "tracked_nominal", "anchored_forward", "forward_error", "LaplaceLikelihood",
+           "laplace_likelihood", "NEWTON_STEPS", "ANCHOR_PRIOR_SD"]
 
 NEWTON_STEPS = 4  # Newton steps from the anchor per evaluation: 3 reach 1e-11 in the log-likelihood (four-bolt frame)
 ANCHOR_PRIOR_SD = 0.5  # the anchors' broad prior on z: the data, not it, place them
@@ -82,29 +82,36 @@ class AnchoredForward:
         return (f, d) if grad else f
 
 
-def _split_at(model: Structure, nominal: Modes, modes: np.ndarray, z: np.ndarray,
-              count: int) -> tuple[np.ndarray, np.ndarray]:
-    """``c_k`` (K,) and ``L_kj`` (K, r) of the model's modes at ``z`` tracked to ``nominal``'s ``modes``."""
-    gamma = np.exp(z)
-    solved = structure_modes(model, count, gamma)
+def tracked_nominal(model: Structure, modes: np.ndarray) -> Modes:
+    """The nominal modes the tests' modes are tracked to: ``modes`` (0-based) and `EXTRA_TRACKED` above."""
+    return structure_modes(model, min(int(modes.max()) + 1 + EXTRA_TRACKED, model.size - 2))
+
+
+def _tracked_at(model: Structure, nominal: Modes, modes: np.ndarray, z: np.ndarray) -> Modes:
+    """The model's modes at ``z`` tracked to ``nominal``'s ``modes`` by MAC (eigenvalues, mass-normalised shapes)."""
+    solved = structure_modes(model, nominal.count, np.exp(z))
     index, _ = track_modes(nominal, solved, model.mass)
-    shapes = solved.shapes[:, index[modes]]
-    rest, per_joint = structure_energies(model, shapes)
-    return rest, (per_joint * gamma[:, None]).T
+    return Modes(solved.eigenvalues[index[modes]], solved.shapes[:, index[modes]])
 
 
-def anchored_forward(model: Structure, f_obs: np.ndarray, mask: np.ndarray, modes: np.ndarray) -> AnchoredForward:
+def _split_at(model: Structure, nominal: Modes, modes: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``c_k`` (K,) and ``L_kj`` (K, r) of the model's modes at ``z`` tracked to ``nominal``'s ``modes``."""
+    rest, per_joint = structure_energies(model, _tracked_at(model, nominal, modes, z).shapes)
+    return rest, (per_joint * np.exp(z)[:, None]).T
+
+
+def anchored_forward(model: Structure, nominal: Modes, f_obs: np.ndarray, mask: np.ndarray,
+                     modes: np.ndarray) -> AnchoredForward:
     """Each test's anchor and its Rayleigh-quotient split, by Gauss-Newton with exact solves.
 
     Parameters
     ----------
     model : the model with its joints at the reference moduli ``Y0`` (``z = 0``).
+    nominal : its `tracked_nominal` modes.
     f_obs, mask : (T, K) measured frequencies, Hz, and where they exist.
     modes : (K,) model mode index (0 = lowest) of each measured mode.
     """
     r = len(model.joint_names)
-    count = min(int(modes.max()) + 1 + EXTRA_TRACKED, model.size - 2)
-    nominal = structure_modes(model, count)
     tests = f_obs.shape[0]
     anchor = np.zeros((tests, r))
     rest = np.empty((tests, modes.size))
@@ -113,7 +120,7 @@ def anchored_forward(model: Structure, f_obs: np.ndarray, mask: np.ndarray, mode
     for t in range(tests):
         z = np.zeros(r)
         for it in range(ANCHOR_ITERATIONS + 1):
-            c, lk = _split_at(model, nominal, modes, z, count)
+            c, lk = _split_at(model, nominal, modes, z)
             if it == ANCHOR_ITERATIONS:
                 break
             lam = c + lk.sum(axis=1)
@@ -127,18 +134,14 @@ def anchored_forward(model: Structure, f_obs: np.ndarray, mask: np.ndarray, mode
     return AnchoredForward(anchor, rest, joints)
 
 
-def forward_error(model: Structure, forward: AnchoredForward, modes: np.ndarray, spread: float = 0.2,
-                  tests: int = 3, seed: int = 0) -> float:
+def forward_error(model: Structure, nominal: Modes, forward: AnchoredForward, modes: np.ndarray,
+                  spread: float = 0.2, tests: int = 3, seed: int = 0) -> float:
     """Largest relative frequency error of ``forward`` against exact solves ``spread`` (in z) from anchors."""
     rng = np.random.default_rng(seed)
-    count = min(int(modes.max()) + 1 + EXTRA_TRACKED, model.size - 2)
-    nominal = structure_modes(model, count)
     worst = 0.0
     for t in range(min(tests, forward.anchor.shape[0])):
         z = forward.anchor[t] + spread * rng.standard_normal(forward.anchor.shape[1])
-        solved = structure_modes(model, count, np.exp(z))
-        index, _ = track_modes(nominal, solved, model.mass)
-        exact = solved.frequency_hz[index[modes]]
+        exact = _tracked_at(model, nominal, modes, z).frequency_hz
         moved = forward.anchor.copy()
         moved[t] = z
         approx = np.asarray(forward(moved))[t]
@@ -210,7 +213,8 @@ def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointG
     """
     p = prepare(model, measured, groups, start)
     at = structure_at_moduli(model, p.reference_pa[p.joint_group])
-    forward = anchored_forward(at, p.f_obs, p.mask, p.modes)
+    nominal = tracked_nominal(at, p.modes)  # one solve serves the anchors and the error check
+    forward = anchored_forward(at, nominal, p.f_obs, p.mask, p.modes)
     lm = LaplaceLikelihood(forward, p.f_obs, p.mask, np.asarray(measured.mean_hz, float), p.joint_group,
                            p.reference_pa, forward.anchor)
-    return lm, forward_error(at, forward, p.modes)
+    return lm, forward_error(at, nominal, forward, p.modes)

@@ -110,7 +110,7 @@ def frame_with_joint_models(frame: FrameOrMatrices, models: Mapping[str, tuple[f
         modulus, cov = models[named]
         joints.append(replace(joint, youngs_modulus=float(modulus), cov=float(cov)))
     if isinstance(frame, MatrixModel):  # its joint matrices are at the file's means: they move with them
-        scale = [new.youngs_modulus / old.youngs_modulus for new, old in zip(joints, frame.joints)]
-        return replace(frame, joints=tuple(joints),
-                       stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, frame.stiffness_joints)))
+        ratio = np.array([new.youngs_modulus / old.youngs_modulus for new, old in zip(joints, frame.joints)])
+        moved = frame.scaled(ratio)
+        return replace(moved, joints=tuple(joints))  # the CoVs too, and the means exactly as given
     return replace(frame, joints=tuple(joints))

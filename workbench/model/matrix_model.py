@@ -9,7 +9,7 @@ table names each row by its node and component.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -179,6 +179,15 @@ class MatrixModel:
         gamma : (n_joints,) normalised joint parameters ``Y_j / E[Y_j]``, finite and positive.
         """
         return self._pattern.stiffness(gamma, self.joint_names)
+
+    def scaled(self, scale: np.ndarray) -> MatrixModel:
+        """The model with joint j's mean parameter times ``scale[j]``, its matrix with it (eq. 3-4:
+        ``K_j`` is the joint's stiffness at its mean, so it moves with the mean).
+        """
+        scale = np.asarray(scale, float)
+        joints = tuple(replace(j, youngs_modulus=float(j.youngs_modulus * s)) for j, s in zip(self.joints, scale))
+        return replace(self, joints=joints,
+                       stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, self.stiffness_joints)))
 
     def energies(self, shapes: np.ndarray, others: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``x^T K_rest y`` (n_shapes,) and ``x^T K_j y`` per joint (n_joints, n_shapes): ``lambda_kj`` of eq. (5).

@@ -12,8 +12,6 @@ Carlo, the FRF band and the identification call them and never ask which kind th
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from workbench.model.assembly import Model, assemble
@@ -58,10 +56,7 @@ def structure_at_moduli(model: Structure, moduli_pa: np.ndarray) -> Structure:
     """``model`` with its joints' means at ``moduli_pa`` (n_joints,), Pa: ``gamma`` is then relative to them."""
     if isinstance(model, Model):
         return model_at_moduli(model, moduli_pa)
-    scale = joint_scale(model, moduli_pa)
-    joints = tuple(replace(j, youngs_modulus=float(j.youngs_modulus * s)) for j, s in zip(model.joints, scale))
-    return replace(model, joints=joints,
-                   stiffness_joints=tuple((s * k).tocsr() for s, k in zip(scale, model.stiffness_joints)))
+    return model.scaled(joint_scale(model, moduli_pa))
 
 
 def structure_of(frame: Frame | MatrixModel) -> Structure:

@@ -304,9 +304,7 @@ def apply_matrix_effect(model: MatrixModel, effect: Effect | None) -> MatrixMode
         if effect.where is not None and effect.where not in model.joint_names:
             raise KeyError(f"{model.source}: no joint named {effect.where!r}")
         factor = np.array([float(p["factor"]) if effect.where in (None, n) else 1.0 for n in model.joint_names])
-        return replace(model, joints=tuple(replace(j, youngs_modulus=j.youngs_modulus * f)
-                                           for j, f in zip(model.joints, factor)),
-                       stiffness_joints=tuple((f * k).tocsr() for f, k in zip(factor, model.stiffness_joints)))
+        return model.scaled(factor)
     if effect.type in (AMPLITUDE_SOFTENING.name, JOINT_DAMPING.name):
         if effect.where not in model.joint_names:
             raise KeyError(f"{model.source}: no joint named {effect.where!r}")
