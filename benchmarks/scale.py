@@ -1,7 +1,8 @@
 """Speed at scale: generated bolted frames of 20k, 100k and 1M dofs with 200 joints (issue 15).
 
 Run from the repository root: ``python benchmarks/scale.py [--sizes 20000 100000 1000000]``
-(about 3 minutes on 2 cores). Each size runs in a fresh process (``--one DOFS``), so that its peak
+(about 30 minutes on 2 cores, 25 of them the reduced basis at 1M dofs; ``--no-reduced`` skips it:
+3 minutes). Each size runs in a fresh process (``--one DOFS``), so that its peak
 memory is its own, with one BLAS thread (the machines here have two cores and the sparse solver
 does not use more). For each size it prints:
 
@@ -12,8 +13,10 @@ does not use more). For each size it prints:
 - the reduced-basis Monte Carlo (`workbench.uq.reduced`: SMR2's basis, each mode's joint
   sensitivities compressed to their principal directions above 400 vectors) per draw against one
   full solve of the same draw, its basis size and build time and its largest frequency error on
-  those draws, up to `REDUCED_LIMIT` dofs (the basis needs 10 factorisations and 10 x joints solves);
-- the process's peak resident memory.
+  those draws (the basis needs 10 factorisations, 10 x joints solves and a block Gram-Schmidt of its
+  ~900 vectors: 15 minutes at 1M dofs on one core, which 10 000 draws repay: 0.2 s each against
+  several seconds for a full solve);
+- peak resident memory: after SMR1 (the target's) and after the reduced basis.
 
 Targets (issue 15): 100k dofs, 10 modes under 5 s; 1M dofs with 200 joints: assembly under 10 s,
 SMR1 under 90 s, peak under 12 GiB.
@@ -31,11 +34,10 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-REDUCED_LIMIT = 150_000  # dofs up to which the reduced-basis Monte Carlo is timed
 DRAWS = 20  # joint draws timed by both the reduced basis and full solves
 
 
-def one(dofs: int) -> dict:
+def one(dofs: int, reduced_mc: bool = True) -> dict:
     """Every figure for one size, in this process."""
     import numpy as np
 
@@ -58,7 +60,8 @@ def one(dofs: int) -> dict:
     smr1(model, joints, 10)
     row["smr1_s"] = time.perf_counter() - start
     row["smr1_modes"] = 10 + EXTRA_MODES
-    if model.size <= REDUCED_LIMIT:
+    row["peak_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 2**30
+    if reduced_mc:
         gammas = joints.sample(DRAWS, np.random.default_rng(0))
         start = time.perf_counter()
         reduced = reduced_basis(model, nominal, joints)
@@ -70,33 +73,34 @@ def one(dofs: int) -> dict:
         exact = np.array([model_modes(model, 10, g, method="sparse").frequency_hz for g in gammas[:3]])
         row["full_per_draw_s"] = (time.perf_counter() - start) / 3
         row["reduced_max_rel_error"] = float(np.max(np.abs(natural[:3] / exact - 1.0)))
+        row["reduced_peak_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 2**30
     else:
-        row["basis_note"] = f"above {REDUCED_LIMIT} dofs (SMR2's basis: 10 factorisations and 10 x joints solves)"
-    row["peak_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 2**30
+        row["basis_note"] = "skipped (--no-reduced)"
     return row
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[20_000, 100_000, 1_000_000])
+    parser.add_argument("--no-reduced", action="store_true", help="skip the reduced-basis Monte Carlo")
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(one(args.one)))
+        print(json.dumps(one(args.one, not args.no_reduced)))
         return
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     print(f"{'dofs':>8s} {'joints':>6s} {'assemble s':>10s} {'10 modes s':>10s} {'SMR1 s':>8s} {'SMR1/solve':>10s} "
           f"{'peak GiB':>8s}  reduced-basis Monte Carlo")
     rows = []
     for dofs in args.sizes:
-        done = subprocess.run([sys.executable, __file__, "--one", str(dofs)], cwd=REPO, env=env, check=True,
-                              capture_output=True, text=True)
+        done = subprocess.run([sys.executable, __file__, "--one", str(dofs)] + ["--no-reduced"] * args.no_reduced,
+                              cwd=REPO, env=env, check=True, capture_output=True, text=True)
         r = json.loads(done.stdout.strip().splitlines()[-1])
         rows.append(r)
         if "reduced_per_draw_s" in r:
             reduced = (f"basis {r['basis_vectors']} vectors in {r['basis_s']:.1f} s; per draw {r['reduced_per_draw_s']:.3f} s "
                        f"against {r['full_per_draw_s']:.3f} s full (x{r['full_per_draw_s'] / r['reduced_per_draw_s']:.1f}), "
-                       f"max frequency error {r['reduced_max_rel_error']:.1e}")
+                       f"max frequency error {r['reduced_max_rel_error']:.1e}, peak {r['reduced_peak_gb']:.1f} GiB")
         else:
             reduced = "not run: " + r["basis_note"]
         print(f"{r['dofs']:8d} {r['joints']:6d} {r['assemble_s']:10.2f} {r['solve_s']:10.2f} {r['smr1_s']:8.2f} "
