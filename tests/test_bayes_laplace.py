@@ -12,9 +12,10 @@ from conftest import REPO
 from scipy.special import gammaln
 from test_bayes import TWO_BOLT, synthetic
 
+from workbench.identify.anchored import AnchoredForward
 from workbench.identify.bayes import bayes_identify
 from workbench.identify.data import JointGroups
-from workbench.identify.laplace import AnchoredForward, laplace_likelihood
+from workbench.identify.laplace import ErrorTerms, laplace_likelihood
 from workbench.identify.likelihood import likelihood_model
 
 FOUR_BOLT = REPO / "frames" / "four_bolt.toml"
@@ -23,7 +24,9 @@ FOUR_BOLT = REPO / "frames" / "four_bolt.toml"
 @pytest.fixture(scope="module")
 def two_joints():
     model, data, _ = synthetic(TWO_BOLT, [24e9, 73.5e9], [0.09, 0.22], 4, 5e-4, 12)
-    return model, data, laplace_likelihood(model, data)[0], likelihood_model(model, data)[0]
+    # the integration of the latent moduli alone: no further error terms
+    plain = laplace_likelihood(model, data, terms=ErrorTerms(False, False))[0]
+    return model, data, plain, likelihood_model(model, data)[0]
 
 
 def _theta(lm, shift=(0.0, 0.0), covs=(0.09, 0.22), sigma=5e-4):

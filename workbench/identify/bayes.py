@@ -8,7 +8,7 @@ steps: about 20 s; 18 tests x 9 modes, two joints, 52 walkers: about 40 s
 (benchmarks/bayes_demo.py).
 
 **Sampler**: `emcee.EnsembleSampler` (differential-evolution moves, vectorised log-probability),
-walkers 4 x dims (at least 32), started from the Laplace approximation at the maximum a posteriori
+walkers 2 x dims + 2 (at least 24), started from the Laplace approximation at the maximum a posteriori
 point (L-BFGS-B, finite-difference Hessian); ``burn`` steps discarded, then ``steps`` kept.
 Seeding: the walkers' start from ``numpy.random.default_rng(seed)`` and emcee's own generator
 through ``emcee.State(..., random_state=RandomState(seed).get_state())`` (emcee silently ignores
@@ -38,18 +38,27 @@ from scipy.optimize import minimize
 
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values, check_moments, joint_groups
-from workbench.identify.laplace import LaplaceLikelihood, laplace_likelihood
-from workbench.identify.likelihood import COV_BOUNDS, MODULUS_BOUNDS_PA, SIGMA_BOUNDS, LikelihoodModel, likelihood_model
+from workbench.identify.laplace import ErrorTerms, LaplaceLikelihood, laplace_likelihood
+from workbench.identify.likelihood import (
+    COV_BOUNDS,
+    MODULUS_BOUNDS_PA,
+    SIGMA_BOUNDS,
+    SIGMA_SCALE,
+    LikelihoodModel,
+    likelihood_model,
+)
+from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT
 from workbench.model.structure import Structure
 from workbench.progress import Progress, report
 
-__all__ = ["Posterior", "run_ensemble", "bayes_identify", "load_arviz"]
+__all__ = ["Posterior", "run_ensemble", "bayes_identify", "chain_diagnostics", "load_arviz"]
 
 log = logging.getLogger(__name__)
 
 
 def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarray, steps: int, burn: int, seed: int,
-                 progress: Progress | None = None) -> Any:
+                 progress: Progress | None = None, until: Callable[[np.ndarray], bool] | None = None,
+                 max_steps: int | None = None) -> Any:
     """Emcee's ensemble on a vectorised ``log_prob`` ((N, D) -> (N,)), seeded.
 
     Moves: differential evolution only, which mixes far better than the stretch move on this
@@ -65,7 +74,9 @@ def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarr
     initial : (walkers, D) starting points.
     steps, burn : kept and discarded steps per walker.
     seed : seeds emcee's generator.
-    progress : called as ``progress("emcee", done, burn + steps)`` after each step (`workbench.progress`).
+    progress : called as ``progress("emcee", done, total)`` after each step (`workbench.progress`).
+    until, max_steps : when given, the kept chain ((steps, walkers, D)) is extended by ``steps // 2`` at a
+        time until ``until(chain)`` holds or ``max_steps`` are kept.
 
     Returns
     -------
@@ -79,21 +90,52 @@ def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarr
     moves = [(emcee.moves.DEMove(), 1.0)]
     sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, vectorize=True, moves=moves)
     done = 0
+    total = burn + steps
 
     def advance(state: Any, iterations: int) -> Any:
         # sampler.sample is what run_mcmc iterates: the same chain, with a report after every step
         nonlocal done
         for state in sampler.sample(state, iterations=iterations):  # noqa: B007, B020 (returns the last state)
             done += 1
-            report(progress, "emcee", done, burn + steps)
+            report(progress, "emcee", done, total)
         return state
 
     state = emcee.State(initial, random_state=np.random.RandomState(seed).get_state())
     if burn:
         state = advance(state, burn)
+        stray = _strays(state.log_prob, ndim)
+        if stray.any():  # move them onto the others and burn in again: the kept chain starts from the new ensemble
+            good = np.flatnonzero(~stray)
+            rng = np.random.default_rng(seed)
+            coords = state.coords.copy()
+            spread = coords[good].std(axis=0)
+            jitter = 1e-3 * spread * rng.standard_normal((stray.sum(), ndim))
+            coords[stray] = coords[rng.choice(good, stray.sum())] + jitter
+            total += burn // 2
+            state = advance(emcee.State(coords, random_state=state.random_state), burn // 2)
         sampler.reset()
-    advance(state, steps)
+    state = advance(state, steps)
+    kept, chunk = steps, max(steps // 2, 1)
+    while until is not None and kept < (max_steps or steps) and not until(sampler.get_chain()):
+        chunk = min(chunk, (max_steps or steps) - kept)
+        total += chunk
+        state = advance(state, chunk)
+        kept += chunk
     return sampler
+
+
+STRAY_LOG_PROB = 10.0  # a walker this far (plus the posterior's own spread) below the median is stranded
+
+
+def _strays(log_prob: np.ndarray, ndim: int) -> np.ndarray:
+    """Walkers stranded in a region of negligible posterior (a local optimum the burn-in did not leave).
+
+    At stationarity a D-dimensional near-Gaussian posterior's log density sits ``chi2_D / 2`` below
+    its peak: spread ``sqrt(D / 2)``. A walker more than ``5 sqrt(D / 2) + STRAY_LOG_PROB`` below the
+    median has odds below e^-10 of belonging there; differential-evolution moves, built from other
+    walkers' differences, rarely propose the jump back, and one such walker alone spoils R-hat.
+    """
+    return log_prob < np.median(log_prob) - 5.0 * math.sqrt(ndim / 2.0) - STRAY_LOG_PROB
 
 
 def _start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
@@ -111,12 +153,17 @@ def _start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
     sig0 = np.clip(np.nanstd(resid, axis=0), 2 * SIGMA_BOUNDS[0], 0.5 * SIGMA_BOUNDS[1])
     eps0 = np.array([lm.z_start[:, lm.joint_group == i].mean() for i in range(g)])
     c0 = np.clip([lm.z_start[:, lm.joint_group == i].std() for i in range(g)], 0.02, 0.4)
-    x0 = np.concatenate([eps0, np.log(c0), np.log(sig0)])
+    extra = lm.extra_bounds
+    # the further error scales start at their priors' scales: from there the likelihood's slope leads
+    # down to what the data need, whereas from a small value it is flat (the latent shifts then sit
+    # on their prior's zero) and the optimiser would stay there
+    x0 = np.concatenate([eps0, np.log(c0), np.log(sig0), np.log(np.asarray(lm.extra_scales, float))])
     ref = np.log(lm.reference_pa)
     inner = 1e-6
     bounds = ([(math.log(MODULUS_BOUNDS_PA[0]) - r + inner, math.log(MODULUS_BOUNDS_PA[1]) - r - inner) for r in ref]
               + [(math.log(COV_BOUNDS[0]) + inner, math.log(COV_BOUNDS[1]) - inner)] * g
-              + [(math.log(SIGMA_BOUNDS[0]) + inner, math.log(SIGMA_BOUNDS[1]) - inner)] * lm.fbar.size)
+              + [(math.log(SIGMA_BOUNDS[0]) + inner, math.log(SIGMA_BOUNDS[1]) - inner)] * lm.fbar.size
+              + [(math.log(lo) + inner, math.log(hi) - inner) for lo, hi in extra])
     x0 = np.clip(x0, [b[0] + 1e-3 for b in bounds], [b[1] - 1e-3 for b in bounds])
     eye = np.eye(d)
     h = 1e-5
@@ -163,7 +210,11 @@ class Posterior:
     youngs_modulus, youngs_modulus_ci95 : (G,), (G, 2) posterior median and equal-tailed 95 %
         interval of each group's mean modulus, Pa.
     cov, cov_ci95 : (G,), (G, 2) the same for the CoV.
-    sigma, sigma_ci95 : (K,), (K, 2) the same for each mode's relative error.
+    sigma, sigma_ci95 : (K,), (K, 2) the same for each mode's relative measurement error.
+    error_names, error_scales, error_scales_ci95 : the further error terms' scales (``common_error``
+        ``s_u``, ``discrepancy_scale`` ``s_delta``, relative; `workbench.identify.laplace`), (E,), (E, 2).
+    discrepancy, discrepancy_ci95 : (K,), (K, 2) each mode's discrepancy ``delta_k`` (relative), or
+        None without that term: the posterior over the sampled parameters of its Laplace law.
     reference_pa : (G,) the preliminary fit's moduli (the forward table's centre).
     forward : "exact" or "smr2"; forward_error : the table's largest relative error between nodes.
     parameter_names : the sampled parameters, in ``rhat``/``ess``/``autocorr_time`` order
@@ -199,6 +250,11 @@ class Posterior:
     seed: int
     wall_time_s: float
     idata: Any = field(repr=False, compare=False, default=None)
+    error_names: tuple[str, ...] = ()
+    error_scales: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    error_scales_ci95: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    discrepancy: np.ndarray | None = None
+    discrepancy_ci95: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         g, k = len(self.groups), np.asarray(self.modes).size
@@ -210,8 +266,8 @@ class Posterior:
 
     @property
     def converged(self) -> bool:
-        """R-hat below 1.05 and at least 20 autocorrelation times of production for every parameter."""
-        return bool(np.all(self.rhat < 1.05) and np.all(self.steps > 20 * self.autocorr_time))
+        """Every parameter's R-hat at most `RHAT_LIMIT` and bulk ESS at least `ESS_LIMIT`."""
+        return bool(np.all(self.rhat <= RHAT_LIMIT) and np.all(self.ess >= ESS_LIMIT))
 
     @property
     def mean_box_pa(self) -> tuple[float, float]:
@@ -264,6 +320,7 @@ def _inference_data(samples: dict[str, np.ndarray], lp: np.ndarray, measured: Me
 def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None, *,
                    start: Values | None = None, walkers: int | None = None, steps: int = 3000, burn: int = 500,
                    seed: int = 0, forward: str = "exact", integration: str = "auto",
+                   errors: ErrorTerms | None = None, max_steps: int | None = None,
                    progress: Progress | None = None) -> Posterior:
     """Bayesian identification of each joint group's mean modulus and CoV from every test (module notes).
 
@@ -273,14 +330,23 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
     measured : every test's frequencies; a campaign with only published moments is refused.
     groups : joint groups (default: the frame's).
     start : (n_groups,) starting moduli, Pa (default the frame file's).
-    walkers : emcee walkers (default 4 x dims, at least 32, even).
+    walkers : emcee walkers (default 2 x dims + 2, at least 24, even). Fewer walkers run longer for the
+        same cost, and R-hat over walkers as chains falls with each walker's length in autocorrelation
+        times (two-bolt frame, 14 parameters: the same tau, 50 steps, with 30 walkers as with 56).
     steps, burn : kept and discarded steps per walker.
     seed : seeds the walkers' start and emcee; written into the result.
     forward : "exact" or "smr2" values in the forward table (tensor-rule integration).
     integration : how each test's latent moduli are integrated out: ``"quadrature"`` (adaptive
         Gauss-Hermite on a tensor table, one or two joints, `workbench.identify.likelihood`),
         ``"laplace"`` (any number, `workbench.identify.laplace`; the result's ``forward`` is then
-        ``"anchored"``) or ``"auto"``: quadrature up to two joints, Laplace above.
+        ``"anchored"``) or ``"auto"``: quadrature up to two joints without further error terms,
+        Laplace otherwise.
+    errors : the error terms beside each mode's measurement error (Laplace only): a test-level
+        common error and the model's discrepancy per mode. Default: none with quadrature, both with
+        Laplace.
+    max_steps : the chains are extended past ``steps`` until every parameter's R-hat is at most
+        `RHAT_LIMIT` and its bulk ESS at least `ESS_LIMIT` (`workbench.identify.record`), up to this many
+        kept steps (default ``steps``: no extension). The result's ``steps`` are those kept.
     progress : called after each emcee step (`run_ensemble`, `workbench.progress`).
 
     Raises
@@ -290,49 +356,41 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         moments only, a bad ``start``, more than two random joints (`likelihood_model`).
     """
     t0 = time.perf_counter()
-    check_moments(measured)
-    if integration not in ("auto", "quadrature", "laplace"):
-        raise ValueError(f"integration: {integration!r} is not one of auto, quadrature, laplace")
-    lm: LikelihoodModel | LaplaceLikelihood
-    if integration == "laplace" or (integration == "auto" and len(model.joint_names) > 2):
-        lm, forward_error = laplace_likelihood(model, measured, groups, start)  # refuses published moments
-        forward = "anchored"
-    else:
-        lm, forward_error = likelihood_model(model, measured, groups, start, forward)
+    lm, forward, forward_error = _likelihood(model, measured, groups, start, forward, integration, errors)
     groups = groups or joint_groups(model)
     ndim = lm.ndim
-    walkers = walkers or max(32, 4 * ndim)
+    walkers = walkers or max(24, 2 * ndim + 2)
     walkers += walkers % 2
     rng = np.random.default_rng(seed)
-    _, initial = _start(lm, walkers, rng)
-    sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress)
+    x_map, initial = _start(lm, walkers, rng)
+    if isinstance(lm, LaplaceLikelihood):  # anchor again where the population puts each test (anchored.py)
+        lm, forward_error = lm.reanchored(x_map)
+        _, initial = _start(lm, walkers, rng)
+    sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
+                           max_steps=max_steps)
     chain = sampler.get_chain()  # (steps, walkers, D)
+    steps = chain.shape[0]
     lp = sampler.get_log_prob().T  # (walkers, steps)
-    quiet = logging.getLogger("emcee.autocorr")  # its "shorter than 50 tau" note: we report tau instead
-    level = quiet.level
-    quiet.setLevel(logging.ERROR)
-    try:
-        tau = sampler.get_autocorr_time(quiet=True)
-    finally:
-        quiet.setLevel(level)
-    g = lm.n_groups
+    tau = _autocorr_time(sampler)
+    g, k = lm.n_groups, lm.fbar.size
     modulus = np.exp(chain[..., :g] + np.log(lm.reference_pa))
     cov = np.exp(chain[..., g:2 * g])
-    sigma = np.exp(chain[..., 2 * g:])
+    scales = np.exp(chain[..., 2 * g:])  # the sigmas, then the further error scales
+    terms = lm.terms if isinstance(lm, LaplaceLikelihood) else ErrorTerms(False, False)
     names = [f"youngs_modulus_{n}" for n in groups.groups] + [f"cov_{n}" for n in groups.groups] + \
-        [f"sigma_mode{m}" for m in np.asarray(measured.modes, int)]
-    natural = np.concatenate([modulus, cov, sigma], axis=-1)  # (steps, walkers, D)
+        [f"sigma_mode{m}" for m in np.asarray(measured.modes, int)] + list(terms.names)
+    natural = np.concatenate([modulus, cov, scales], axis=-1)  # (steps, walkers, D)
     samples = {n: natural[..., i].T for i, n in enumerate(names)}  # (walkers, steps)
-    az = load_arviz()
-    rhat = np.array([float(az.rhat(v)) for v in samples.values()])
-    ess = np.array([float(az.ess(v)) for v in samples.values()])
+    rhat, ess = chain_diagnostics(chain)
     q = np.percentile(natural.reshape(-1, ndim), [2.5, 50.0, 97.5], axis=0)  # (3, D)
     intervals = {n: q[:, i] for i, n in enumerate(names)}
     wall = time.perf_counter() - t0
     attrs = {"seed": seed, "walkers": walkers, "steps": steps, "burn": burn, "forward": forward,
              "forward_error": forward_error, "wall_time_s": wall, "source": measured.source,
              "interval": "equal-tailed 95 % (2.5, 97.5 percentiles)",
-             "priors": "E log-uniform [1e8, 1e12] Pa; cov uniform (0.005, 0.6); sigma_k log-uniform [1e-5, 0.05]",
+             "priors": f"E log-uniform [1e8, 1e12] Pa; cov uniform (0.005, 0.6); sigma_k half-normal ({SIGMA_SCALE:g}) "
+             "on [1e-5, 0.05]" + "".join(f"; {n} half-normal ({scale:g}) on [{lo:g}, {hi:g}]" for n, (lo, hi), scale
+                                         in zip(terms.names, lm.extra_bounds, lm.extra_scales)),
              "reference_pa": lm.reference_pa.tolist(), "autocorr_time": tau.tolist(),
              "acceptance_fraction": float(np.mean(sampler.acceptance_fraction))}
     thin = max(1, math.ceil(steps / 500))
@@ -343,12 +401,78 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         modes=np.asarray(measured.modes, int),
         youngs_modulus=q[1, :g], youngs_modulus_ci95=q[[0, 2], :g].T,
         cov=q[1, g:2 * g], cov_ci95=q[[0, 2], g:2 * g].T,
-        sigma=q[1, 2 * g:], sigma_ci95=q[[0, 2], 2 * g:].T,
+        sigma=q[1, 2 * g:2 * g + k], sigma_ci95=q[[0, 2], 2 * g:2 * g + k].T,
         reference_pa=lm.reference_pa, forward=forward, forward_error=forward_error,
         parameter_names=tuple(names), rhat=rhat, ess=ess, autocorr_time=tau,
         acceptance_fraction=float(np.mean(sampler.acceptance_fraction)),
-        walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata)
+        walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata,
+        error_names=terms.names, error_scales=q[1, 2 * g + k:], error_scales_ci95=q[[0, 2], 2 * g + k:].T,
+        **_discrepancy(lm, chain, rng))
     if not post.converged:
-        log.warning("%s: the chains may not have converged (max R-hat %.3f, steps %d, max autocorrelation "
-                    "time %.0f)", measured.source, rhat.max(), steps, tau.max())
+        log.warning("%s: the chains have not converged (max R-hat %.3f, limit %.2f; min ESS %.0f, limit %d; "
+                    "%d steps)", measured.source, rhat.max(), RHAT_LIMIT, ess.min(), ESS_LIMIT, steps)
     return post
+
+
+def _likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None, start: Values | None,
+                forward: str, integration: str, errors: ErrorTerms | None
+                ) -> tuple[LikelihoodModel | LaplaceLikelihood, str, float]:
+    """The likelihood `bayes_identify` samples, the name of its forward model and that model's error."""
+    check_moments(measured)
+    if integration not in ("auto", "quadrature", "laplace"):
+        raise ValueError(f"integration: {integration!r} is not one of auto, quadrature, laplace")
+    further = errors is not None and (errors.common or errors.discrepancy)
+    if integration == "quadrature" and further:
+        raise ValueError("bayes: the common and discrepancy error terms need the Laplace integration")
+    if integration == "laplace" or (integration == "auto" and (len(model.joint_names) > 2 or further)):
+        laplace, error = laplace_likelihood(model, measured, groups, start, errors)  # refuses published moments
+        return laplace, "anchored", error
+    table, error = likelihood_model(model, measured, groups, start, forward)
+    return table, forward, error
+
+
+def _autocorr_time(sampler: Any) -> np.ndarray:
+    """Emcee's integrated autocorrelation time per parameter, without its "shorter than 50 tau" note
+    (the result reports tau itself).
+    """
+    quiet = logging.getLogger("emcee.autocorr")
+    level = quiet.level
+    quiet.setLevel(logging.ERROR)
+    try:
+        return np.asarray(sampler.get_autocorr_time(quiet=True))
+    finally:
+        quiet.setLevel(level)
+
+
+def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Arviz rank-normalised split R-hat and bulk ESS of each parameter, walkers as chains, (D,) each.
+
+    ``chain`` (steps, walkers, D). Both are invariant under monotone maps of a parameter, so the
+    sampled logs give the values of the reported parameters.
+    """
+    az = load_arviz()
+    per = np.moveaxis(chain, -1, 0).transpose(0, 2, 1)  # (D, walkers, steps)
+    return (np.array([float(az.rhat(p)) for p in per]), np.array([float(az.ess(p)) for p in per]))
+
+
+def _settled(chain: np.ndarray) -> bool:
+    rhat, ess = chain_diagnostics(chain)
+    return bool(np.all(rhat <= RHAT_LIMIT) and np.all(ess >= ESS_LIMIT))
+
+
+DISCREPANCY_DRAWS = 400  # posterior draws whose discrepancy law is evaluated for its summary
+
+
+def _discrepancy(lm: LikelihoodModel | LaplaceLikelihood, chain: np.ndarray,
+                 rng: np.random.Generator) -> dict[str, np.ndarray | None]:
+    """Each mode's discrepancy: median and 95 % interval of ``delta_k`` over the posterior, from its
+    Laplace law (mode and sd) at `DISCREPANCY_DRAWS` draws of the sampled parameters.
+    """
+    if not isinstance(lm, LaplaceLikelihood) or not lm.terms.discrepancy:
+        return {"discrepancy": None, "discrepancy_ci95": None}
+    flat = chain.reshape(-1, chain.shape[-1])
+    draws = flat[rng.choice(flat.shape[0], min(DISCREPANCY_DRAWS, flat.shape[0]), replace=False)]
+    delta, sd = lm.discrepancy(draws)
+    sampled = delta + sd * rng.standard_normal(delta.shape)
+    q = np.percentile(sampled, [2.5, 50.0, 97.5], axis=0)
+    return {"discrepancy": q[1], "discrepancy_ci95": q[[0, 2]].T}

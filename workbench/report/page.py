@@ -19,6 +19,7 @@ import numpy as np
 
 from workbench import __version__
 from workbench.identify.bayes import load_arviz
+from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT
 from workbench.report.pieces import absent as _absent
 from workbench.report.pieces import escape as _e
 from workbench.report.pieces import figure_pool, html_figure
@@ -237,7 +238,8 @@ def _posterior_section(study: Study, tables: Tables, prefix: str) -> str:
     for name, v, ci, r, e, t in zip(post.parameter_names, values, cis, post.rhat, post.ess, post.autocorr_time):
         label, scale = _posterior_name(name)
         rows.append((label, float(v) * scale, _pair(ci, scale), float(r), float(e), float(t)))
-    status = "converged" if post.converged else "NOT converged (R-hat >= 1.05 or fewer than 20 autocorrelation times)"
+    status = ("converged" if post.converged else
+              f"NOT converged (an R-hat above {RHAT_LIMIT} or a bulk ESS below {ESS_LIMIT}): intervals not final")
     return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus "
                         "(GPa) and CoV (%) (arviz).", "posterior plots") +
             tables.add(f"{prefix}posterior", ["parameter (unit)", "median (parameter's unit)",
