@@ -72,6 +72,9 @@ def report(name, model, groups, data, moduli, steps, burn, errors, max_steps):
           f"{post.steps} steps + {burn} burn-in); forward model "
           f"error {post.forward_error:.1e} at 0.2 in log-modulus from the anchors; max R-hat {post.rhat.max():.3f}, "
           f"min ESS {post.ess.min():.0f}")
+    slow = np.argsort(post.rhat)[::-1][:3]
+    print("  slowest: " + ", ".join(f"{post.parameter_names[i]} R-hat {post.rhat[i]:.3f} tau {post.autocorr_time[i]:.0f}"
+                                    for i in slow))
     worst_mean, worst_cov = 0.0, 0.0
     for g, members in enumerate(groups.members):
         sample = moduli[:, list(members)].ravel()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -262,3 +263,40 @@ def test_demo_runs_the_main_job_from_the_repository_root(tmp_path):
     again = subprocess.run([sys.executable, "-m", "workbench.cli", "demo", "--out", str(out), "--samples", "20",
                             "--steps", "100"], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
+
+
+def _modes_campaign(directory: Path, seed: int) -> Path:
+    """The one-bolt sweep's campaign with modes.csv in place of its FRFs: frequencies drawn from the
+    joint's Gamma law (test_bayes.synthetic), 0.05 % noise."""
+    import shutil
+
+    from conftest import REPO
+    from test_bayes import ONE_BOLT, synthetic
+
+    shutil.copytree(REPO / "campaigns" / "one_bolt_vertical_sweep", directory, ignore=shutil.ignore_patterns("frf.*"))
+    _, data, _ = synthetic(ONE_BOLT, [24e9], [0.09], 9, 5e-4, seed, count=4)
+    rows = [f"{t + 1},{k + 1},{float(f)!r},0.002" for t in range(9) for k, f in enumerate(data.frequency_hz[t])]
+    (directory / "modes.csv").write_text("test_id,mode,frequency_hz,damping_ratio\n" + "\n".join(rows) + "\n")
+    return directory
+
+
+def test_identify_bayes_fails_on_unconverged_chains_unless_allowed_and_then_reports_them(tmp_path, capsys):
+    import json
+
+    campaign = _modes_campaign(tmp_path / "c", 5)
+    before = {p.name: p.read_bytes() for p in campaign.iterdir()}
+    out = tmp_path / "id"
+    short = ["--steps", "40", "--max-steps", "40"]  # far too short for 10 parameters: R-hat and ESS miss them
+    assert main(["identify", str(campaign), "--method", "bayes", *short, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "have not converged in 40 steps" in err and "--allow-bounds" in err
+    assert not out.exists()
+    assert main(["identify", str(campaign), "--method", "bayes", *short, "--allow-bounds", "--out", str(out)]) == 0
+    record = json.loads((out / "identification.json").read_text())
+    assert record["diagnostics"]["converged"] is False and record["diagnostics"]["rhat_max"] > 1.01
+    errors = record["errors"]
+    assert set(errors) == {"measurement", "common_error", "discrepancy_scale", "discrepancy"}
+    assert list(errors["discrepancy"]) == ["mode1", "mode2", "mode3", "mode4"]
+    for entry in (errors["common_error"], errors["discrepancy_scale"], *errors["measurement"].values()):
+        assert 0 < entry["ci95"][0] <= entry["value"] <= entry["ci95"][1]
+    assert {p.name: p.read_bytes() for p in campaign.iterdir()} == before

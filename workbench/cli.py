@@ -19,6 +19,7 @@ from tqdm import tqdm
 from workbench import __version__
 from workbench.identify.bayes import Posterior, bayes_identify
 from workbench.identify.data import check_moments
+from workbench.identify.laplace import ERROR_TERMS
 from workbench.identify.moments import MomentFit, moment_matching
 from workbench.identify.record import (
     ESS_LIMIT,
@@ -194,7 +195,9 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
     else:
         from workbench.workflow.posterior import POSTERIOR_FILE, posterior_netcdf
 
-        fit = posterior = bayes_identify(model, data, seed=args.seed, progress=_progress())
+        fit = posterior = bayes_identify(model, data, seed=args.seed, steps=args.steps,
+                                         max_steps=max(args.max_steps, args.steps), errors=ERROR_TERMS[args.errors],
+                                         progress=_progress())
         files[POSTERIOR_FILE] = posterior_netcdf(posterior)  # through write_outputs below: all files or none
     wall = time.perf_counter() - start
     record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
@@ -206,12 +209,18 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
     for failure in failures:
         warnings.warn(f"{args.campaign}: {failure} (written with \"at_bound\": true)", stacklevel=1)
     diagnostics = sampler_diagnostics(fit)
-    if diagnostics is not None:
+    if diagnostics is not None and isinstance(fit, Posterior):
         record["diagnostics"] = diagnostics
+        record["errors"] = fit.error_records()
         if not diagnostics["converged"]:
-            warnings.warn(f"{args.campaign}: the chains have not converged by the usual rule (max R-hat "
-                          f"{diagnostics['rhat_max']:.3f}, limit {RHAT_LIMIT}; min ESS {diagnostics['ess_min']:.0f}, "
-                          f"limit {ESS_LIMIT}): identification.json says \"converged\": false", stacklevel=1)
+            unsettled = (f"the chains have not converged in {fit.steps} steps (max R-hat "
+                         f"{diagnostics['rhat_max']:.3f}, limit {RHAT_LIMIT}; min ESS {diagnostics['ess_min']:.0f}, "
+                         f"limit {ESS_LIMIT})")
+            if not args.allow_bounds:
+                raise ValueError(f"{args.campaign}: failed identification, {unsettled}: raise --max-steps, or "
+                                 "--allow-bounds writes it with \"converged\": false")
+            warnings.warn(f"{args.campaign}: {unsettled}: identification.json says \"converged\": false",
+                          stacklevel=1)
     files["identification.json"] = json_text(record)
     out.commit(files)
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
@@ -329,8 +338,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
     p.add_argument("--allow-bounds", action="store_true",
-                   help="write an estimate within 1 %% of its search interval's bound (flagged \"at_bound\": true) "
-                        "instead of failing")
+                   help="write an estimate within 1 %% of its search interval's bound (flagged \"at_bound\": true), "
+                        "or chains that have not converged (\"converged\": false), instead of failing")
+    p.add_argument("--steps", type=_positive_int, default=3000, help="bayes: steps kept per walker, at least "
+                   "(default 3000)")
+    p.add_argument("--max-steps", type=_positive_int, default=12000, help="bayes: the chains run on until every "
+                   "R-hat <= 1.01 and ESS >= 400, up to this many steps (default 12000)")
+    p.add_argument("--errors", choices=sorted(ERROR_TERMS), default="full",
+                   help="bayes: error terms beside each mode's measurement error: full (a test-level common error "
+                        "and the model's discrepancy per mode, the default), common, discrepancy or none")
 
     p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate,
                 ("moments.csv", "run.json"))

@@ -288,6 +288,23 @@ class Posterior:
                              "cov_ci95": [float(v) for v in self.cov_ci95[g]]}
         return out
 
+    def error_records(self) -> dict[str, object]:
+        """identification.json's ``errors`` (an extension key; relative values, medians and 95 % intervals):
+        each mode's measurement error, the further error terms' scales and each mode's discrepancy.
+        """
+        def entry(value: float, ci: np.ndarray) -> dict[str, object]:
+            return {"value": float(value), "ci95": [float(ci[0]), float(ci[1])]}
+
+        modes = [int(m) for m in self.modes]
+        out: dict[str, object] = {"measurement": {f"mode{m}": entry(v, c)
+                                                  for m, v, c in zip(modes, self.sigma, self.sigma_ci95)}}
+        out.update({name: entry(v, c) for name, v, c in zip(self.error_names, self.error_scales,
+                                                            self.error_scales_ci95)})
+        if self.discrepancy is not None and self.discrepancy_ci95 is not None:
+            out["discrepancy"] = {f"mode{m}": entry(v, c)
+                                  for m, v, c in zip(modes, self.discrepancy, self.discrepancy_ci95)}
+        return out
+
 
 def load_arviz() -> ModuleType:
     """The arviz module, imported with its FutureWarning silenced (it announces its 1.0 refactor on import)."""

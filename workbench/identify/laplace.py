@@ -49,9 +49,8 @@ from workbench.identify.data import JointGroups, Values
 from workbench.identify.likelihood import LOG_2PI, PopulationModel, gamma_log_density, prepare
 from workbench.model.structure import Structure, structure_at_moduli
 
-__all__ = ["ErrorTerms", "COMMON_BOUNDS", "DISCREPANCY_BOUNDS", "COMMON_SCALE", "DISCREPANCY_SCALE", "NEWTON_STEPS",
-           "LaplaceLikelihood",
-           "laplace_likelihood"]
+__all__ = ["ErrorTerms", "ERROR_TERMS", "COMMON_BOUNDS", "DISCREPANCY_BOUNDS", "COMMON_SCALE", "DISCREPANCY_SCALE",
+           "NEWTON_STEPS", "LaplaceLikelihood", "laplace_likelihood"]
 
 NEWTON_STEPS = 4  # Newton steps from the anchor per evaluation: 3 reach 1e-11 in the log-likelihood (four-bolt frame)
 COMMON_BOUNDS = (1e-5, 0.02)  # s_u: a test's common relative shift; 0.02 is 60 K of steel, or a remounting
@@ -73,6 +72,10 @@ class ErrorTerms:
     def names(self) -> tuple[str, ...]:
         """The sampled scales, in ``theta``'s order after the sigmas."""
         return (("common_error",) if self.common else ()) + (("discrepancy_scale",) if self.discrepancy else ())
+
+
+ERROR_TERMS = {"full": ErrorTerms(True, True), "common": ErrorTerms(True, False),
+               "discrepancy": ErrorTerms(False, True), "none": ErrorTerms(False, False)}  # by their command-line names
 
 
 @dataclass(frozen=True)
@@ -196,9 +199,9 @@ class LaplaceLikelihood(PopulationModel):
                 right = np.concatenate([np.swapaxes(coupling, -1, -2), grad[..., None]], axis=-1)
                 solved = np.linalg.solve(hess, right)  # H_t^-1 [C_t, g_t]
                 schur = _schur(q, f, inv_d, coupling, solved[..., :k])
-                reduced = grad_d - np.einsum("ntkp,ntp->nk", coupling, solved[..., k])
+                reduced = grad_d - _over_tests(coupling, solved[..., k:])[..., 0]
                 step_d = np.linalg.solve(schur, reduced[..., None])
-                step = solved[..., k] - np.einsum("ntpk,nk->ntp", solved[..., :k], step_d[..., 0])
+                step = solved[..., k] - (solved[..., :k] @ step_d[:, None])[..., 0]
                 delta = delta + np.clip(step_d[..., 0], -MAX_SHIFT_STEP, MAX_SHIFT_STEP)
             z = z + np.clip(step[..., :r], -MAX_Z_STEP, MAX_Z_STEP)
             if inv_u is not None:
@@ -226,7 +229,15 @@ def _schur(q: np.ndarray, f: np.ndarray, inv_d: np.ndarray, coupling: np.ndarray
     diagonal ``D_k = sum_t q_tk f_tk + 1 / s_delta^2``, less what the tests' blocks take up.
     """
     diagonal = np.sum(q * f, axis=1) + inv_d
-    return diagonal[..., None] * np.eye(q.shape[-1]) - np.einsum("ntkp,ntpl->nkl", coupling, solved)
+    return diagonal[..., None] * np.eye(q.shape[-1]) - _over_tests(coupling, solved)
+
+
+def _over_tests(coupling: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """``sum_t C_t^T X_t`` (N, K, L) of ``coupling`` (N, T, K, p) and ``right`` (N, T, p, L): one batched
+    product over the tests' stacked rows (an einsum here took a fifth of the likelihood's time).
+    """
+    n, t, k, p = coupling.shape
+    return coupling.transpose(0, 2, 1, 3).reshape(n, k, t * p) @ right.reshape(n, t * p, right.shape[-1])
 
 
 def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,

@@ -221,9 +221,10 @@ def _joints_section(study: Study, tables: Tables, prefix: str) -> str:
 def _posterior_name(name: str) -> tuple[str, float]:
     """A posterior parameter's label with its unit, and the factor from its natural unit (Pa, fraction)."""
     for prefix, label, unit, scale in (("youngs_modulus_", "E", "GPa", 1e-9), ("cov_", "CoV", "%", 100.0),
-                                       ("sigma_", "sigma", "%", 100.0)):
+                                       ("sigma_", "sigma", "%", 100.0), ("common_error", "common s_u", "%", 100.0),
+                                       ("discrepancy_scale", "discrepancy s_delta", "%", 100.0)):
         if name.startswith(prefix):
-            return f"{label} {name[len(prefix):]} ({unit})", scale
+            return f"{label} {name[len(prefix):]}".rstrip() + f" ({unit})", scale
     return name, 1.0
 
 
@@ -233,11 +234,14 @@ def _posterior_section(study: Study, tables: Tables, prefix: str) -> str:
         return _absent(f"the Bayesian estimator was {study.bayes_note}.")
     fig = posterior_figure(post, load_arviz())
     rows = []
-    values = np.concatenate([post.youngs_modulus, post.cov, post.sigma])
-    cis = np.concatenate([post.youngs_modulus_ci95, post.cov_ci95, post.sigma_ci95])
+    values = np.concatenate([post.youngs_modulus, post.cov, post.sigma, post.error_scales])
+    cis = np.concatenate([post.youngs_modulus_ci95, post.cov_ci95, post.sigma_ci95, post.error_scales_ci95])
     for name, v, ci, r, e, t in zip(post.parameter_names, values, cis, post.rhat, post.ess, post.autocorr_time):
         label, scale = _posterior_name(name)
         rows.append((label, float(v) * scale, _pair(ci, scale), float(r), float(e), float(t)))
+    if post.discrepancy is not None and post.discrepancy_ci95 is not None:  # not sampled: no R-hat of its own
+        rows += [(f"discrepancy mode{m} (%)", 100.0 * float(v), _pair(ci, 100.0), float("nan"), float("nan"),
+                  float("nan")) for m, v, ci in zip(post.modes, post.discrepancy, post.discrepancy_ci95)]
     status = ("converged" if post.converged else
               f"NOT converged (an R-hat above {RHAT_LIMIT} or a bulk ESS below {ESS_LIMIT}): intervals not final")
     return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus "
@@ -248,7 +252,9 @@ def _posterior_section(study: Study, tables: Tables, prefix: str) -> str:
                        ["", ".4g", ".4g", ".3f", ".0f", ".1f"]) +
             f'<p class="note">{post.walkers} walkers x {post.steps} steps after {post.burn} burn-in, seed {post.seed}, '
             f"acceptance {post.acceptance_fraction:.2f}, forward table error {post.forward_error:.1e}: {_e(status)}. "
-            f"sigma modeK is mode K's relative model/measurement error, in %.</p>")
+            f"sigma modeK is mode K's relative measurement error, s_u the spread of a test's common relative shift "
+            f"(temperature, mounting), s_delta that of the model's discrepancy per mode, discrepancy modeK mode K's "
+            f"systematic relative error (its posterior over the sampled parameters), all in %.</p>")
 
 
 def _accuracy_section(study: Study, tables: Tables, prefix: str) -> str:
