@@ -4,8 +4,6 @@ its anchored forward model against exact solves, and four joints identified one 
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from conftest import REPO
@@ -84,16 +82,13 @@ def test_four_joints_each_its_own_group_are_identified():
     model, data, moduli = synthetic(FOUR_BOLT, means, covs, 24, 5e-4, 7)
     groups = JointGroups(("L1", "L2", "L3", "L4"), ((0,), (1,), (2,), (3,)),
                          tuple(j.youngs_modulus for j in model.joints))
-    t0 = time.perf_counter()
-    post = bayes_identify(model, data, groups, seed=1)
-    wall = time.perf_counter() - t0
+    post = bayes_identify(model, data, groups, seed=1)  # its time: benchmarks/bayes_many_joints.py, not a test
     sample_mean = moduli.mean(axis=0)
     sample_cov = moduli.std(axis=0, ddof=1) / sample_mean
     assert post.forward == "anchored"
     np.testing.assert_allclose(post.youngs_modulus, sample_mean, rtol=0.08)
     np.testing.assert_allclose(post.cov, sample_cov, rtol=0.35)
     assert np.all(np.isfinite(post.youngs_modulus_ci95)) and np.all(np.isfinite(post.cov_ci95))
-    assert wall < 120
 
 
 def test_a_fit_listed_group_by_group_is_written_in_the_frame_order():
