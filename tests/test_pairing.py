@@ -71,3 +71,19 @@ def test_without_shapes_the_order_stands(measured):
     model, data = measured
     plain = replace(data, modal_constants=None)
     assert pair_by_mac(model, plain) is plain
+
+
+def test_a_campaign_on_some_of_the_model_sensors_pairs_by_their_names(measured):
+    """A campaign measured at fewer sensors than the model has (UNESP-BERT: four accelerometers, the model
+    also a laser), in another order: its modal constants are matched to the model's sensors by name."""
+    model, data = measured
+    assert data.sensors == tuple(s.name for s in model.frame.sensors)  # the extraction names them
+    take = [3, 0, 2]  # three of the five, reordered
+    fewer = replace(data, modal_constants=data.modal_constants[..., take],
+                    sensors=tuple(data.sensors[i] for i in take))
+    assert list(pair_by_mac(model, fewer).modes) == list(range(1, 9))
+    unknown = replace(fewer, sensors=("nowhere",) + fewer.sensors[1:])
+    with pytest.raises(ValueError, match=r"sensor 'nowhere' is not a sensor of"):
+        pair_by_mac(model, unknown)
+    with pytest.raises(ValueError, match=r"sensors: 2 names for 3 sensors"):
+        replace(fewer, sensors=fewer.sensors[:2])

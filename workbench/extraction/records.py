@@ -43,6 +43,8 @@ class MeasuredModes:
         sensors combined (circle fit), or None when not known.
     flags : per row, per mode, the circle fit's quality flags (empty when not known).
     modal_constants : (n_rows, n_modes, n_sensors) complex receptance modal constants, 1/kg, or None.
+    sensors : the names of ``modal_constants``' sensors, in its order; empty when they are the model's
+        sensors in the file's order.
     source : where the numbers come from, for messages.
     """
 
@@ -57,6 +59,7 @@ class MeasuredModes:
     damping_scatter: np.ndarray | None = field(default=None, repr=False)
     flags: tuple[tuple[tuple[str, ...], ...], ...] = field(default=(), repr=False)
     modal_constants: np.ndarray | None = field(default=None, repr=False)
+    sensors: tuple[str, ...] = ()
     source: str = ""
 
     def __post_init__(self) -> None:
@@ -81,6 +84,9 @@ class MeasuredModes:
         object.__setattr__(self, "damping_ratio", None if d is None or np.all(np.isnan(d)) else d)
         for name in ("frequency_scatter_hz", "damping_scatter", "modal_constants"):
             object.__setattr__(self, name, _table(getattr(self, name), f.shape, where + name))
+        if self.sensors and self.modal_constants is not None and len(self.sensors) != self.modal_constants.shape[-1]:
+            raise ValueError(f"{where}sensors: {len(self.sensors)} names for {self.modal_constants.shape[-1]} "
+                             "sensors of modal constants")
         if self.amplitude is not None:
             a = np.asarray(self.amplitude, float)
             if a.shape != (n_rows,) or not np.all(np.isfinite(a)) or np.any(a <= 0):

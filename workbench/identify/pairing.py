@@ -19,7 +19,7 @@ from scipy.optimize import linear_sum_assignment
 
 from workbench.extraction.records import MeasuredModes
 from workbench.model.modal import mac
-from workbench.model.structure import Structure, excitation_dof, sensor_dofs, structure_modes
+from workbench.model.structure import Structure, excitation_dof, response_dofs, structure_modes
 
 __all__ = ["MIN_PAIR_MAC", "EXTRA_CANDIDATES", "FREQUENCY_WINDOW", "mean_mac", "pair_by_mac"]
 
@@ -70,7 +70,13 @@ def pair_by_mac(model: Structure, measured: MeasuredModes, min_mac: float = MIN_
         return measured
     count = min(int(np.max(measured.modes)) + EXTRA_CANDIDATES, model.size - 2)
     modes = structure_modes(model, count)
-    sensors = sensor_dofs(model)
+    sensors, _, names = response_dofs(model)
+    if measured.sensors:  # the campaign's sensors by name: a model may have more (UNESP-BERT's laser)
+        unknown = [s for s in measured.sensors if s not in names]
+        if unknown:
+            raise ValueError(f"{measured.source}: sensor {unknown[0]!r} is not a sensor of {model.source} "
+                             f"({', '.join(names)})")
+        sensors = sensors[[names.index(s) for s in measured.sensors]]
     table = mean_mac(measured, modes.shapes[sensors] * modes.shapes[drive])
     near = np.abs(modes.frequency_hz[None, :] / np.asarray(measured.mean_hz)[:, None] - 1.0) <= FREQUENCY_WINDOW
     table = np.where(near, table, 0.0)

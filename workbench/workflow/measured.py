@@ -104,7 +104,12 @@ class Extraction:
                              frequency_scatter_hz=self._table(lambda e: e.frequency_scatter, True),
                              damping_scatter=self._table(lambda e: e.damping_scatter, True),
                              flags=tuple(tuple(e.flags for e in self.estimates[t]) for t in self.tests),
-                             modal_constants=self._modal_constants(), source=source)
+                             modal_constants=self._modal_constants(), sensors=self._sensors(), source=source)
+
+    def _sensors(self) -> tuple[str, ...]:
+        """The sensors of the modal constants: the tests' FRF responses, when every test has the same."""
+        names = {tuple(self.sets[t].responses) for t in self.tests}
+        return names.pop() if len(names) == 1 else ()
 
     def _modal_constants(self) -> np.ndarray | None:
         """(n_tests, n_modes, n_sensors) complex receptance modal constants of every fit, 1/kg (NaN where
