@@ -87,3 +87,30 @@ def test_a_campaign_on_some_of_the_model_sensors_pairs_by_their_names(measured):
         pair_by_mac(model, unknown)
     with pytest.raises(ValueError, match=r"sensors: 2 names for 3 sensors"):
         replace(fewer, sensors=fewer.sensors[:2])
+
+
+def test_a_free_structure_s_measured_modes_skip_its_rigid_body_modes():
+    """The Brake-Reuss beam hangs free: its model's first three modes are rigid (0 Hz), and its campaign
+    measures one sensor, so no shape can pair the modes. Measured mode 1 is the first bending mode,
+    the model's fourth: the estimators must compare it with that one, not with a rigid-body mode."""
+    from workbench.extraction.records import MeasuredModes
+
+    model = assemble(read_frame(REPO / "frames" / "brake_reuss.toml"))
+    solved = model_modes(model, 8)
+    assert np.sum(solved.frequency_hz < 0.5) == 3
+    data = MeasuredModes(np.array([[80.3, 318.0], [80.1, 317.5]]), source="free beam")
+    assert list(pair_by_mac(model, data).modes) == [4, 5]
+    # numbers that already skip the rigid modes stay
+    assert list(pair_by_mac(model, replace(data, modes=np.array([4, 5]))).modes) == [4, 5]
+
+
+def test_a_free_beam_with_a_very_stiff_joint_is_not_called_unstable():
+    """Rounding puts a free structure's rigid-body eigenvalues slightly below zero, by about eps times the
+    pencil's largest eigenvalue: with the joint at 1e12 Pa that is far more than 1e-8 of the bending
+    modes' eigenvalues, yet the structure is stable (the nominal fit's scan goes there)."""
+    model = assemble(read_frame(REPO / "frames" / "brake_reuss.toml"))
+    for scale in (1e-3, 1.0, 1e12 / 48e9):
+        solved = model_modes(model, 5, np.full(len(model.joints), scale))
+        assert np.all(solved.frequency_hz[:3] < 0.5) and solved.frequency_hz[3] > 0.5
+        # asked for the rigid modes only, the highest eigenvalue found is itself a rounding error
+        assert np.all(model_modes(model, 2, np.full(len(model.joints), scale)).frequency_hz < 0.5)

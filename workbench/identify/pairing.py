@@ -18,13 +18,14 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from workbench.extraction.records import MeasuredModes
-from workbench.model.modal import mac
+from workbench.model.modal import RIGID_HZ, mac
 from workbench.model.structure import Structure, excitation_dof, response_dofs, structure_modes
 
 __all__ = ["MIN_PAIR_MAC", "EXTRA_CANDIDATES", "FREQUENCY_WINDOW", "mean_mac", "pair_by_mac"]
 
 MIN_PAIR_MAC = 0.5  # below this a measured mode is not any model mode (frozen: see tests/test_pairing.py)
 EXTRA_CANDIDATES = 4  # model modes solved beyond the highest measured one
+MAX_RIGID = 6  # and room for a free structure's rigid-body modes
 FREQUENCY_WINDOW = 0.3  # candidates within this relative distance in frequency: a few sensors cannot tell
 #                         a low mode from a high one by shape alone (the paper's 5 sensors: MAC 0.99 between them)
 
@@ -54,8 +55,10 @@ def mean_mac(measured: MeasuredModes, model_constants: np.ndarray) -> np.ndarray
 def pair_by_mac(model: Structure, measured: MeasuredModes, min_mac: float = MIN_PAIR_MAC) -> MeasuredModes:
     """``measured`` with ``modes`` set to the model modes of the same shape (MAC), one to one.
 
-    Unchanged when it holds no modal constants. The model's modes are those of its file (joints at
-    their mean), the first ``max(measured.modes) + EXTRA_CANDIDATES``.
+    The model's modes are those of its file (joints at their mean). A measured mode is never a
+    rigid-body mode (below `RIGID_HZ`): where the numbers would put one on a free structure's rigid
+    modes, every number moves past them (the Brake-Reuss beam's first measured mode is its model's
+    fourth). Without modal constants, or with fewer than two sensors, that is all.
 
     Raises
     ------
@@ -63,13 +66,14 @@ def pair_by_mac(model: Structure, measured: MeasuredModes, min_mac: float = MIN_
         A measured mode's best available model mode has a MAC below ``min_mac`` (its shape is none
         of the model's), naming the mode, its frequency and the MAC.
     """
-    if measured.modal_constants is None:
-        return measured
-    drive = excitation_dof(model)
-    if drive is None:
-        return measured
-    count = min(int(np.max(measured.modes)) + EXTRA_CANDIDATES, model.size - 2)
+    count = min(int(np.max(measured.modes)) + EXTRA_CANDIDATES + MAX_RIGID, model.size - 2)
     modes = structure_modes(model, count)
+    rigid = int(np.sum(modes.frequency_hz < RIGID_HZ))
+    if rigid and np.any(np.asarray(measured.modes) <= rigid):
+        measured = replace(measured, modes=np.asarray(measured.modes) + rigid)
+    drive = excitation_dof(model)
+    if measured.modal_constants is None or drive is None:
+        return measured
     sensors, _, names = response_dofs(model)
     if measured.sensors:  # the campaign's sensors by name: a model may have more (UNESP-BERT's laser)
         unknown = [s for s in measured.sensors if s not in names]

@@ -25,7 +25,7 @@ import numpy as np
 
 from workbench.extraction.records import MeasuredModes
 from workbench.io.campaign import Campaign, load_campaign
-from workbench.model.modal import mac
+from workbench.model.modal import RIGID_HZ, mac
 from workbench.model.structure import response_dofs, structure_modes, structure_of
 from workbench.tasks import Mapper
 from workbench.workflow.measured import Extraction, extract_campaign
@@ -34,7 +34,6 @@ __all__ = ["ShapeComparison", "dominant_real", "shape_comparison", "usable_const
            "load_for_report", "SHAPE_UNUSABLE"]
 
 SHAPE_UNUSABLE = ("few_points", "edge_of_band")
-RIGID_HZ = 0.5  # model modes below this are rigid-body modes of a free structure: not compared
 
 
 def parse_bands(text: str | None) -> list[tuple[float, float]] | None:
