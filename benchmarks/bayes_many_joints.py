@@ -13,9 +13,12 @@ forward model's error, R-hat and ESS. Run from the repository root:
 
     python benchmarks/bayes_many_joints.py [--steps 1500] [--burn 500] [--cases four many]
 
-The 20-joint case does not meet its target yet: with 20 latent moduli per test against 10
-frequencies, the per-mode errors' posterior runs towards zero and the chains mix slowly (over 10
-minutes, unconverged, on 2 cores).
+What it showed (2 cores, another job beside it): four joints, error terms on, 3000 kept steps: 114 s,
+every mean within 0.9 % and CoV within 5 % of the sample values, but max R-hat 1.15 (the per-mode
+measurement errors mix slowest, autocorrelation time about 150 steps in 20 dimensions); to R-hat
+1.045 it took 12 000 steps and 328 s. The 20-joint case (no error terms, 4000 steps) runs in 252 s
+with group means -6.0 % / +0.7 % and CoVs +32 % / -14 % off, unconverged (max R-hat 2.1): 20 latent
+moduli per test against 10 frequencies leave most joints placed by their law alone.
 """
 
 from __future__ import annotations
