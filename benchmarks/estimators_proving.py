@@ -72,6 +72,11 @@ def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int) -
     model = structure_of(frame)
     t0 = time.perf_counter()
     data = pair_by_mac(model, measured_modes(replace(campaign, frame=frame), COUNT, "identify from"))
+    # a mode the circle fit found in fewer than two tests is refused by both estimators
+    # (`workbench.identify.data.check_moments`); here it is left out, as a user would leave it out
+    usable = np.sum(np.isfinite(data.frequency_hz), axis=0) >= 2
+    dropped = [int(m) for m in data.modes[~usable]]
+    data = data.select(usable)
     extract_s = time.perf_counter() - t0
     groups = joint_groups(model)
     fits = {}
@@ -105,7 +110,8 @@ def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int) -
                              "parameter": parameter, "estimate": float(value), "ci_low": lo, "ci_high": hi,
                              "population": float(population), "sample": float(sampled),
                              "converged": converged, "wall_time_s": walls[estimator], "extract_s": extract_s,
-                             "modes_found": int(np.sum(np.all(np.isfinite(data.frequency_hz), axis=0)))})
+                             "modes_found": int(np.sum(np.all(np.isfinite(data.frequency_hz), axis=0))),
+                             "modes_dropped": dropped})
     return rows
 
 
