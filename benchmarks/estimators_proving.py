@@ -153,6 +153,18 @@ def format_summary(summary: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def markdown(summary: list[dict]) -> str:
+    """The summary as a Markdown table (population truth; coverage with its Wilson 95 % interval)."""
+    lines = ["| design | estimator | group | parameter | runs | bias (%) | RMSE (%) | 95 % coverage [Wilson] | "
+             "coverage of the sample value | converged | mean wall time (s) |", "|---" * 11 + "|"]
+    for s in summary:
+        lo, hi = s["coverage_wilson95"]
+        lines.append(f"| {s['design']} | {s['estimator']} | {s['group']} | {s['parameter']} | {s['runs']} | "
+                     f"{s['bias_pct']:+.1f} | {s['rmse_pct']:.1f} | {s['coverage']:.0%} [{lo:.0%}, {hi:.0%}] | "
+                     f"{s['coverage_sample']:.0%} | {s['converged']:.0%} | {s['wall_time_s_mean']:.0f} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--reps", type=int, default=30, help="campaigns per design (default 30)")
@@ -185,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
     text = format_summary(summary)
     (args.out / "summary.txt").write_text(text + "\n")
+    (args.out / "summary.md").write_text(markdown(summary))
     print(text)
     return 0
 
