@@ -300,3 +300,26 @@ def test_identify_bayes_fails_on_unconverged_chains_unless_allowed_and_then_repo
     for entry in (errors["common_error"], errors["discrepancy_scale"], *errors["measurement"].values()):
         assert 0 < entry["ci95"][0] <= entry["value"] <= entry["ci95"][1]
     assert {p.name: p.read_bytes() for p in campaign.iterdir()} == before
+
+
+def test_identify_leaves_out_a_mode_found_in_one_test_with_a_warning(tmp_path, capsys):
+    """One mode the circle fit lost in all tests but one does not cost the campaign: it is left out with a
+    warning, and the identification equals the one from the campaign without that mode."""
+    import json
+
+    campaign = _modes_campaign(tmp_path / "c", 6)
+    lines = (campaign / "modes.csv").read_text().splitlines()
+    full = [line for line in lines[1:] if line.split(",")[1] != "3"]
+    kept = [line for line in lines[1:] if line.split(",")[1] != "3" or line.split(",")[0] == "1"]
+    (campaign / "modes.csv").write_text("\n".join([lines[0], *kept]) + "\n")  # mode 3 in test 1 only
+    assert main(["identify", str(campaign), "--method", "moments", "--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "modes [3] were extracted in fewer than 2 tests: left out" in err
+    record = json.loads((tmp_path / "a" / "identification.json").read_text())
+    assert record["modes_used"] == [1, 2, 4]
+    # against the campaign that never had mode 3 (renumbered: its modes are 1, 2, 4 of the model)
+    (campaign / "modes.csv").write_text("\n".join([lines[0], *full]) + "\n")
+    assert main(["identify", str(campaign), "--method", "moments", "--out", str(tmp_path / "b")]) == 0
+    without = json.loads((tmp_path / "b" / "identification.json").read_text())
+    assert without["modes_used"] == [1, 2, 4]
+    assert record["joints"] == without["joints"]

@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from workbench import __version__
 from workbench.identify.bayes import Posterior, bayes_identify
-from workbench.identify.data import check_moments
+from workbench.identify.data import check_moments, usable_modes
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.identify.moments import MomentFit, moment_matching
 from workbench.identify.record import (
@@ -180,7 +180,10 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.workflow.measured import measured_modes
 
     campaign = load_campaign(args.campaign)
-    data = measured_modes(campaign, args.count, "identify from")
+    data, dropped = usable_modes(measured_modes(campaign, args.count, "identify from"))
+    if dropped:
+        warnings.warn(f"{args.campaign}: modes {dropped} were extracted in fewer than 2 tests: left out "
+                      "(modes_used in identification.json lists the modes used)", stacklevel=1)
     check_moments(data)  # refuse unusable moments before the method's own checks, as before any work
     if args.method == "bayes" and not data.has_tests:
         raise ValueError(f"{args.campaign}: bayes needs every test's frequencies (modes.csv or FRFs); this "

@@ -19,8 +19,8 @@ from workbench.model.frame import Frame, Joint
 from workbench.model.matrix_model import MatrixJoint
 from workbench.model.structure import Structure
 
-__all__ = ["Values", "JointGroups", "joint_groups", "check_moments", "resolve_groups", "per_group", "check_box",
-           "check_modes"]
+__all__ = ["Values", "JointGroups", "joint_groups", "usable_modes", "check_moments", "resolve_groups", "per_group",
+           "check_box", "check_modes"]
 
 Values = float | Sequence[float] | np.ndarray
 """One value per joint group (or one for all): a number, a sequence or an array."""
@@ -74,6 +74,21 @@ def joint_groups(frame: Frame | Structure) -> JointGroups:
             raise ValueError(f"{frame.source}: joints: group {g!r} mixes mean moduli {sorted(moduli)}")
         nominal.append(moduli.pop())
     return JointGroups(tuple(order), tuple(tuple(members[g]) for g in order), tuple(nominal))
+
+
+def usable_modes(measured: MeasuredModes) -> tuple[MeasuredModes, list[int]]:
+    """``measured`` without the modes extracted in fewer than 2 tests, and their numbers.
+
+    Such a mode has no sample deviation, and `check_moments` refuses it; the command line leaves it
+    out with a warning instead, so that one mode the circle fit lost does not cost the campaign
+    (identification.json's ``modes_used`` lists what was used). Published moments are returned whole.
+    """
+    if not measured.has_tests:
+        return measured, []
+    keep = np.sum(np.isfinite(measured.frequency_hz), axis=0) >= 2
+    if keep.all() or not keep.any():  # nothing to leave out, or nothing left: check_moments says which
+        return measured, []
+    return measured.select(keep), [int(m) for m in np.asarray(measured.modes)[~keep]]
 
 
 def check_moments(measured: MeasuredModes) -> None:
