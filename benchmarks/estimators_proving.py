@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.identify.bayes import bayes_identify
-from workbench.identify.data import joint_groups
+from workbench.identify.data import joint_groups, usable_modes
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.identify.moments import moment_matching
 from workbench.identify.pairing import pair_by_mac
@@ -72,11 +72,7 @@ def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int) -
     model = structure_of(frame)
     t0 = time.perf_counter()
     data = pair_by_mac(model, measured_modes(replace(campaign, frame=frame), COUNT, "identify from"))
-    # a mode the circle fit found in fewer than two tests is refused by both estimators
-    # (`workbench.identify.data.check_moments`); here it is left out, as a user would leave it out
-    usable = np.sum(np.isfinite(data.frequency_hz), axis=0) >= 2
-    dropped = [int(m) for m in data.modes[~usable]]
-    data = data.select(usable)
+    data, dropped = usable_modes(data)  # a mode found in fewer than two tests left out, as `identify` does
     extract_s = time.perf_counter() - t0
     groups = joint_groups(model)
     fits = {}

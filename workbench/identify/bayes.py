@@ -47,7 +47,7 @@ from workbench.identify.likelihood import (
     LikelihoodModel,
     likelihood_model,
 )
-from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT
+from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT, settled
 from workbench.model.structure import Structure
 from workbench.progress import Progress, report
 
@@ -267,7 +267,7 @@ class Posterior:
     @property
     def converged(self) -> bool:
         """Every parameter's R-hat at most `RHAT_LIMIT` and bulk ESS at least `ESS_LIMIT`."""
-        return bool(np.all(self.rhat <= RHAT_LIMIT) and np.all(self.ess >= ESS_LIMIT))
+        return settled(self.rhat, self.ess)
 
     @property
     def mean_box_pa(self) -> tuple[float, float]:
@@ -474,7 +474,7 @@ def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _settled(chain: np.ndarray) -> bool:
     rhat, ess = chain_diagnostics(chain)
-    return bool(np.all(rhat <= RHAT_LIMIT) and np.all(ess >= ESS_LIMIT))
+    return settled(rhat, ess)
 
 
 DISCREPANCY_DRAWS = 400  # posterior draws whose discrepancy law is evaluated for its summary

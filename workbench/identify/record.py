@@ -5,10 +5,12 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+import numpy as np
+
 from workbench.model.frame import Frame
 from workbench.model.matrix_model import MatrixModel
 
-__all__ = ["BOUND_TOLERANCE", "RHAT_LIMIT", "ESS_LIMIT", "identification_record", "bound_failures",
+__all__ = ["BOUND_TOLERANCE", "RHAT_LIMIT", "ESS_LIMIT", "settled", "identification_record", "bound_failures",
            "sampler_diagnostics"]
 
 # CONTRACTS.md section 3: an estimate within 1 % of a bound of its search interval is a failed identification
@@ -17,6 +19,13 @@ BOUND_TOLERANCE = 0.01
 # effective sample size at least that (Vehtari et al. 2021's thresholds)
 RHAT_LIMIT = 1.01
 ESS_LIMIT = 400
+
+
+def settled(rhat: Any, ess: Any) -> bool:
+    """Every parameter's R-hat at most `RHAT_LIMIT` and its bulk ESS at least `ESS_LIMIT`: the one rule
+    by which the chains run on, a posterior says it converged and the command refuses it.
+    """
+    return bool(np.all(np.asarray(rhat) <= RHAT_LIMIT) and np.all(np.asarray(ess) >= ESS_LIMIT))
 
 
 def identification_record(campaign_name: str, method: str, frame: Frame | MatrixModel, fit: Any,
@@ -99,5 +108,5 @@ def sampler_diagnostics(fit: Any) -> dict | None:
         return None
     rhat_max, ess_min = float(max(rhat)), float(min(ess))
     return {"rhat_max": rhat_max, "ess_min": ess_min,
-            "converged": bool(rhat_max <= RHAT_LIMIT and ess_min >= ESS_LIMIT),
+            "converged": settled(rhat, ess),
             "limits": {"rhat_max": RHAT_LIMIT, "ess_min": ESS_LIMIT}}
