@@ -7,9 +7,11 @@ samples the posterior and summarises it.
 steps: about 20 s; 18 tests x 9 modes, two joints, 52 walkers: about 40 s
 (benchmarks/bayes_demo.py).
 
-**Sampler**: `emcee.EnsembleSampler` (differential-evolution moves, vectorised log-probability),
-walkers 2 x dims + 2 (at least 24), started from the Laplace approximation at the maximum a posteriori
-point (L-BFGS-B, finite-difference Hessian); ``burn`` steps discarded, then ``steps`` kept.
+**Sampler**: `emcee.EnsembleSampler` (differential-evolution moves and an independence move fitted to
+the burn-in, vectorised log-probability; `workbench.identify.sampler`), walkers 2 x dims + 2 (at least
+24), started from the Laplace approximation at the maximum a posteriori point (L-BFGS-B,
+finite-difference Hessian); ``burn`` steps discarded, ``burn // 2`` more adapt the independence
+move, then ``steps`` kept.
 Seeding: the walkers' start from ``numpy.random.default_rng(seed)`` and emcee's own generator
 through ``emcee.State(..., random_state=RandomState(seed).get_state())`` (emcee silently ignores
 a bare integer there). Progress goes through the `workbench.progress`
@@ -17,7 +19,7 @@ callback, one ``"emcee"`` task over the burn-in and the kept steps. Diagnostics:
 bulk ESS (walkers as chains) and emcee's integrated autocorrelation time. Intervals are
 equal-tailed 95 % (2.5 and 97.5 percentiles).
 
-This is the only module that imports emcee; arviz (which pulls in pandas and xarray) is imported
+Only `workbench.identify.sampler` imports emcee; arviz (which pulls in pandas and xarray) is imported
 only when a result is built (`load_arviz`). Writing the posterior to a file is the caller's
 (`workbench.workflow.posterior`).
 """
@@ -28,7 +30,6 @@ import logging
 import math
 import time
 import warnings
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
@@ -48,94 +49,13 @@ from workbench.identify.likelihood import (
     likelihood_model,
 )
 from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT, settled
+from workbench.identify.sampler import run_ensemble
 from workbench.model.structure import Structure
-from workbench.progress import Progress, report
+from workbench.progress import Progress
 
 __all__ = ["Posterior", "run_ensemble", "bayes_identify", "chain_diagnostics", "load_arviz"]
 
 log = logging.getLogger(__name__)
-
-
-def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarray, steps: int, burn: int, seed: int,
-                 progress: Progress | None = None, until: Callable[[np.ndarray], bool] | None = None,
-                 max_steps: int | None = None) -> Any:
-    """Emcee's ensemble on a vectorised ``log_prob`` ((N, D) -> (N,)), seeded.
-
-    Moves: differential evolution only, which mixes far better than the stretch move on this
-    likelihood. emcee 3.1.6's ``DESnookerMove`` is biased (it samples a 12-D standard Gaussian
-    with a standard deviation of 0.78; fixed upstream in dfm/emcee PR #531, not yet released):
-    with 20 % of snooker moves the 95 % intervals came out 18-28 % too narrow, and the CoV's
-    covered the truth in 80 % of 30 synthetic 40-test campaigns against 93 % with DE alone
-    (benchmarks/compare_estimators.py).
-
-    Parameters
-    ----------
-    log_prob : vectorised log-probability.
-    initial : (walkers, D) starting points.
-    steps, burn : kept and discarded steps per walker.
-    seed : seeds emcee's generator.
-    progress : called as ``progress("emcee", done, total)`` after each step (`workbench.progress`).
-    until, max_steps : when given, the kept chain ((steps, walkers, D)) is extended by ``steps // 2`` at a
-        time until ``until(chain)`` holds or ``max_steps`` are kept.
-
-    Returns
-    -------
-    emcee.EnsembleSampler
-        After ``burn`` discarded steps (``sampler.reset()``) and ``steps`` kept. The same ``seed``
-        and ``initial`` give the same chain.
-    """
-    import emcee  # heavy, and needed only when sampling: importing this module stays light
-
-    walkers, ndim = initial.shape
-    moves = [(emcee.moves.DEMove(), 1.0)]
-    sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, vectorize=True, moves=moves)
-    done = 0
-    total = burn + steps
-
-    def advance(state: Any, iterations: int) -> Any:
-        # sampler.sample is what run_mcmc iterates: the same chain, with a report after every step
-        nonlocal done
-        for state in sampler.sample(state, iterations=iterations):  # noqa: B007, B020 (returns the last state)
-            done += 1
-            report(progress, "emcee", done, total)
-        return state
-
-    state = emcee.State(initial, random_state=np.random.RandomState(seed).get_state())
-    if burn:
-        state = advance(state, burn)
-        stray = _strays(state.log_prob, ndim)
-        if stray.any():  # move them onto the others and burn in again: the kept chain starts from the new ensemble
-            good = np.flatnonzero(~stray)
-            rng = np.random.default_rng(seed)
-            coords = state.coords.copy()
-            spread = coords[good].std(axis=0)
-            jitter = 1e-3 * spread * rng.standard_normal((stray.sum(), ndim))
-            coords[stray] = coords[rng.choice(good, stray.sum())] + jitter
-            total += burn // 2
-            state = advance(emcee.State(coords, random_state=state.random_state), burn // 2)
-        sampler.reset()
-    state = advance(state, steps)
-    kept, chunk = steps, max(steps // 2, 1)
-    while until is not None and kept < (max_steps or steps) and not until(sampler.get_chain()):
-        chunk = min(chunk, (max_steps or steps) - kept)
-        total += chunk
-        state = advance(state, chunk)
-        kept += chunk
-    return sampler
-
-
-STRAY_LOG_PROB = 10.0  # a walker this far (plus the posterior's own spread) below the median is stranded
-
-
-def _strays(log_prob: np.ndarray, ndim: int) -> np.ndarray:
-    """Walkers stranded in a region of negligible posterior (a local optimum the burn-in did not leave).
-
-    At stationarity a D-dimensional near-Gaussian posterior's log density sits ``chi2_D / 2`` below
-    its peak: spread ``sqrt(D / 2)``. A walker more than ``5 sqrt(D / 2) + STRAY_LOG_PROB`` below the
-    median has odds below e^-10 of belonging there; differential-evolution moves, built from other
-    walkers' differences, rarely propose the jump back, and one such walker alone spoils R-hat.
-    """
-    return log_prob < np.median(log_prob) - 5.0 * math.sqrt(ndim / 2.0) - STRAY_LOG_PROB
 
 
 def _start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
@@ -384,7 +304,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         lm, forward_error = lm.reanchored(x_map)
         _, initial = _start(lm, walkers, rng)
     sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
-                           max_steps=max_steps)
+                           max_steps=max_steps, independence=burn > 0)
     chain = sampler.get_chain()  # (steps, walkers, D)
     steps = chain.shape[0]
     lp = sampler.get_log_prob().T  # (walkers, steps)

@@ -241,8 +241,10 @@ class LaplaceLikelihood(PopulationModel):
 
     def _evaluate(self, pop: _Population, x: _Latent, grad: bool) -> _Local:
         """The log integrand at ``x`` without its constants; with ``grad`` its ascent directions too."""
-        out = self.table(x.z, grad=grad)
-        g, d = out if grad else (out, None)
+        if grad:
+            g, d = self.table(x.z, grad=True)
+        else:
+            g, d = self.table(x.z), None
         f = g * np.exp(x.u[..., None] + x.delta[:, None, :])
         res = self.f_obs - f
         log_gamma, e = gamma_log_density(x.z, pop.a, pop.log_th)
