@@ -376,7 +376,8 @@ def _autocorr_time(sampler: Any) -> np.ndarray:
     level = quiet.level
     quiet.setLevel(logging.ERROR)
     try:
-        return np.asarray(sampler.get_autocorr_time(quiet=True))
+        with np.errstate(invalid="ignore", divide="ignore"):  # a walker that moved in no step: tau is NaN
+            return np.asarray(sampler.get_autocorr_time(quiet=True))
     finally:
         quiet.setLevel(level)
 

@@ -117,7 +117,14 @@ def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarr
     import emcee  # heavy, and needed only when sampling: importing this module stays light
 
     walkers, ndim = initial.shape
-    sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, vectorize=True, moves=[(emcee.moves.DEMove(), 1.0)])
+    # fewer walkers than 2 D: differential evolution then moves each walker within the other half's span;
+    # the independence move reaches every direction (bayes_identify uses D + 4 walkers with it)
+    few = walkers < 2 * ndim
+
+    def de() -> Any:
+        return emcee.moves.DEMove(live_dangerously=few)
+
+    sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, vectorize=True, moves=[(de(), 1.0)])
     done, total = 0, burn + steps + (burn // 2 if independence and burn else 0)
 
     def advance(on: Any, state: Any, iterations: int) -> Any:
@@ -145,7 +152,7 @@ def run_ensemble(log_prob: Callable[[np.ndarray], np.ndarray], initial: np.ndarr
         if independence:
             proposal = StudentProposal().fit(sampler.get_chain()[-max(burn // 2, 1):].reshape(-1, ndim))
             sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, vectorize=True,
-                                            moves=[(emcee.moves.DEMove(), 1.0 - INDEPENDENCE_SHARE),
+                                            moves=[(de(), 1.0 - INDEPENDENCE_SHARE),
                                                    (emcee.moves.MHMove(proposal), INDEPENDENCE_SHARE)])
             state = advance(sampler, state, burn // 2)
             proposal.fit(sampler.get_chain().reshape(-1, ndim))  # frozen from here: the kept chain's proposal
