@@ -117,3 +117,33 @@ def test_sampler_diagnostics_flag_an_unconverged_posterior():
         bad = sampler_diagnostics(SimpleNamespace(rhat=np.array(rhat), ess=np.array(ess)))
         assert bad is not None and not bad["converged"]
     assert sampler_diagnostics(SimpleNamespace()) is None  # moment matching has no chains
+
+
+def test_the_log_likelihood_is_smooth_between_posterior_points_and_its_newton_settled():
+    """Between two points of the four-bolt posterior (error terms on, small measurement errors), the
+    log-likelihood must be finite and smooth, and equal to a far stricter Newton iteration's. Four
+    exact-Hessian Newton steps from the anchors, as before, left holes of 100 to 1000 along such a line
+    (a walker proposing into one is always refused)."""
+    from workbench.identify import laplace
+
+    model, data, _ = synthetic(FOUR_BOLT, [24e9, 73.5e9, 73.5e9, 24e9], [0.09, 0.22, 0.22, 0.09], 24, 5e-4, 7)
+    groups = JointGroups(("L1", "L2", "L3", "L4"), ((0,), (1,), (2,), (3,)),
+                         tuple(j.youngs_modulus for j in model.joints))
+    lm, _ = laplace_likelihood(model, data, groups, terms=ErrorTerms(True, True))
+    k = lm.fbar.size
+    a = np.r_[[0.0] * 4, np.log([0.08, 0.2, 0.24, 0.05]), np.full(k, -7.5), -8.0, -10.0]
+    b = np.r_[[0.05, -0.1, 0.12, -0.03], np.log([0.06, 0.17, 0.17, 0.06]), np.linspace(-9.5, -6.8, k), -6.8, -9.0]
+    line = a + np.linspace(0.0, 1.0, 201)[:, None] * (b - a)
+    values = lm.log_likelihood(line)
+    assert np.all(np.isfinite(values))
+    # smooth: second differences at a step of 1/200 are those of a curve, not of a jump
+    assert np.max(np.abs(np.diff(values, 2))) < 1e-3 * (values.max() - values.min() + 1.0)
+    strict = {"NEWTON_TOLERANCE": 1e-13, "TRUSTED_DECREMENT": 0.0, "NEWTON_ITERATIONS": 100}
+    saved = {name: getattr(laplace, name) for name in strict}
+    try:
+        for name, value in strict.items():
+            setattr(laplace, name, value)
+        np.testing.assert_allclose(values, lm.log_likelihood(line), atol=1e-5, rtol=0)
+    finally:
+        for name, value in saved.items():
+            setattr(laplace, name, value)

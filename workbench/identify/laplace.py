@@ -21,7 +21,8 @@ in the pattern of its energy shares across modes (eq. 5); a discrepancy pattern 
 cannot produce is the discrepancy's, and it widens the means' intervals by what it could absorb.
 
 **Integration.** Every latent variable is integrated out by Laplace: the tests' ``z_t = log(Y_t /
-Y0)`` and ``u_t``, and the shared ``delta``. Newton's method finds the joint mode of the integrand;
+Y0)`` and ``u_t``, and the shared ``delta``. Gauss-Newton with a line search finds the joint mode of
+the integrand (`LaplaceLikelihood._mode`);
 its Hessian is block-arrow (each test's block couples to ``delta`` only), so each step solves the
 tests' small blocks and a K x K Schur complement for ``delta``, and
 
