@@ -45,6 +45,7 @@ from workbench.identify.likelihood import (
     MODULUS_BOUNDS_PA,
     SIGMA_BOUNDS,
     SIGMA_SCALE,
+    SIGMA_SPREAD,
     LikelihoodModel,
     likelihood_model,
 )
@@ -325,9 +326,11 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
     attrs = {"seed": seed, "walkers": walkers, "steps": steps, "burn": burn, "forward": forward,
              "forward_error": forward_error, "wall_time_s": wall, "source": measured.source,
              "interval": "equal-tailed 95 % (2.5, 97.5 percentiles)",
-             "priors": f"E log-uniform [1e8, 1e12] Pa; cov uniform (0.005, 0.6); sigma_k half-normal ({SIGMA_SCALE:g}) "
-             "on [1e-5, 0.05]" + "".join(f"; {n} half-normal ({scale:g}) on [{lo:g}, {hi:g}]" for n, (lo, hi), scale
-                                         in zip(terms.names, lm.extra_bounds, lm.extra_scales)),
+             "priors": f"E log-uniform [1e8, 1e12] Pa; cov uniform (0.005, 0.6); sigma_k on [{SIGMA_BOUNDS[0]:g}, "
+             f"{SIGMA_BOUNDS[1]:g}], their geometric mean half-normal ({SIGMA_SCALE:g}), log sigma_k normal about its "
+             f"log (sd {SIGMA_SPREAD:g})" + "".join(f"; {n} half-normal ({scale:g}) on [{lo:g}, {hi:g}]"
+                                                    for n, (lo, hi), scale
+                                                    in zip(terms.names, lm.extra_bounds, lm.extra_scales)),
              "reference_pa": lm.reference_pa.tolist(), "autocorr_time": tau.tolist(),
              "acceptance_fraction": float(np.mean(sampler.acceptance_fraction))}
     thin = max(1, math.ceil(steps / 500))
