@@ -119,6 +119,7 @@ def test_sampler_diagnostics_flag_an_unconverged_posterior():
     assert sampler_diagnostics(SimpleNamespace()) is None  # moment matching has no chains
 
 
+@pytest.mark.slow
 def test_the_log_likelihood_is_smooth_between_posterior_points_and_its_newton_settled():
     """Between two points of the four-bolt posterior (error terms on, small measurement errors), the
     log-likelihood must be finite and smooth, and equal to a far stricter Newton iteration's. Four
