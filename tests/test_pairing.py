@@ -67,6 +67,21 @@ def test_a_shape_no_model_mode_has_is_refused_naming_the_mode(measured):
     assert "\n" not in str(info.value)
 
 
+def test_two_measured_modes_of_one_shape_are_refused_naming_both(measured):
+    """A circle fit that splits one mode into two gives two measured modes of one shape; the second
+    cannot have the model mode the first took, and the message says so (it used to report the taken
+    mode's MAC, 0.98, as "under 0.5")."""
+    model, data = measured
+    twin = data.modal_constants.copy()
+    twin[:, 4, :] = twin[:, 3, :]  # mode 5 measured with mode 4's shape
+    frequency = data.frequency_hz.copy()
+    frequency[:, 4] = frequency[:, 3] * 1.01
+    with pytest.raises(ValueError, match=r"measured mode [45] .* is measured mode [45]'s .*two measured modes of one "
+                                         r"shape") as info:
+        pair_by_mac(model, replace(data, modal_constants=twin, frequency_hz=frequency))
+    assert "\n" not in str(info.value)
+
+
 def test_without_shapes_the_order_stands(measured):
     model, data = measured
     plain = replace(data, modal_constants=None)

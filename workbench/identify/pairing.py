@@ -91,10 +91,14 @@ def pair_by_mac(model: Structure, measured: MeasuredModes, min_mac: float = MIN_
         if not found[i]:
             continue  # no usable shape: the mode keeps its place
         if table[i, j] < min_mac:
+            best = int(np.argmax(table[i]))
+            taken = [int(r) for r, c in zip(rows, cols) if c == best and r != i]
+            why = (f"its best match, model mode {best + 1} (MAC {table[i, best]:.2f}), is measured mode "
+                   f"{taken[0] + 1}'s (MAC {table[taken[0], best]:.2f}): two measured modes of one shape"
+                   if taken else f"its best MAC there is {table[i, best]:.2f}, under {min_mac}")
             raise ValueError(
                 f"{measured.source}: measured mode {i + 1} ({measured.mean_hz[i]:.1f} Hz) pairs with no mode of "
-                f"{model.source} within {100 * FREQUENCY_WINDOW:.0f} % in frequency: its best MAC there is "
-                f"{table[i].max():.2f}, under {min_mac}; check the sensors' names and directions, or give "
-                "modes.csv with the model's mode numbers")
+                f"{model.source} within {100 * FREQUENCY_WINDOW:.0f} % in frequency: {why}; check the sensors' "
+                "names and directions, or give modes.csv with the model's mode numbers")
         paired[i] = j + 1
     return replace(measured, modes=paired)
