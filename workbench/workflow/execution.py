@@ -58,8 +58,10 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
         # 12.4 s for campaigns/four_bolt_table6); the workers keep one BLAS thread each
         environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
                    if k != "MALLOC_TRIM_THRESHOLD_"}
+        # dashboard on a free port: with None the scheduler's HTTP server still takes 8787, and a second
+        # workbench run beside the first warns (an error under pytest) and moves
         with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                                    silence_logs=logging.ERROR)
         client = Client(cluster, set_as_default=False)
     try:
