@@ -53,7 +53,8 @@ class StudentProposal:
 
     def fit(self, points: np.ndarray) -> StudentProposal:
         """Fit to ``points`` (M, D); each parameter exponentiated where that makes it less skewed."""
-        self.linear = _skewness(np.exp(points)) ** 2 < _skewness(points) ** 2
+        with np.errstate(over="ignore", invalid="ignore"):  # a parameter too large to exponentiate stays as it is
+            self.linear = _skewness(np.exp(points)) ** 2 < _skewness(points) ** 2
         y = self._forward(points)
         self.mean = y.mean(axis=0)
         self.root = np.linalg.cholesky(np.cov(y.T) + 1e-12 * np.eye(y.shape[1]))
@@ -61,7 +62,9 @@ class StudentProposal:
         return self
 
     def _forward(self, theta: np.ndarray) -> np.ndarray:
-        return np.where(self.linear, np.exp(theta), theta)
+        out = np.array(theta, float)
+        out[:, self.linear] = np.exp(out[:, self.linear])  # only those: the others may be too large for exp
+        return out
 
     def log_density(self, theta: np.ndarray) -> np.ndarray:
         """``log q(theta)`` (N,) up to a constant: the t's density of the coordinates times their Jacobian."""
@@ -74,7 +77,8 @@ class StudentProposal:
         n, d = coords.shape
         y = self.mean + (random.randn(n, d) @ self.root.T) / np.sqrt(random.chisquare(self.dof, n) / self.dof)[:, None]
         outside = np.any(self.linear & (y <= 0.0), axis=1)  # a scale below zero: no parameter there, rejected
-        proposed = np.where(self.linear, np.log(np.where(y > 0.0, y, 1.0)), y)
+        proposed = y.copy()
+        proposed[:, self.linear] = np.log(np.where(y[:, self.linear] > 0.0, y[:, self.linear], 1.0))
         proposed[outside] = coords[outside]
         ratio = self.log_density(coords) - self.log_density(proposed)
         return proposed, np.where(outside, -np.inf, ratio)
