@@ -280,6 +280,7 @@ def _modes_campaign(directory: Path, seed: int) -> Path:
     return directory
 
 
+@pytest.mark.slow
 def test_identify_bayes_fails_on_unconverged_chains_unless_allowed_and_then_reports_them(tmp_path, capsys):
     import json
 

@@ -51,6 +51,7 @@ def test_extract_finds_the_rig_modes(chain):
         np.testing.assert_allclose(got[seen], true_hz[: seen.size][seen], rtol=2e-3)
 
 
+@pytest.mark.slow
 def test_identify_report_and_diagnose_read_what_the_stage_before_wrote(chain):
     root, truth = chain
     _run("identify", str(root / "campaign"), "--method", "moments", "--out", str(root / "identify"))

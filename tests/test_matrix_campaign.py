@@ -54,6 +54,7 @@ def _rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 def test_extract_and_identify_give_the_frame_campaign_results(campaigns, tmp_path):
     frame, matrix = campaigns
     for name, source in (("f", frame), ("m", matrix)):
