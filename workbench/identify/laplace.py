@@ -92,7 +92,6 @@ class _Mode:
     shared: np.ndarray  # (N,) the discrepancy's terms
     delta: np.ndarray  # (N, K) delta at the mode
     delta_sd: np.ndarray  # (N, K) its Laplace standard deviation
-    unsettled: int = 0  # rows whose Newton iteration stopped before `NEWTON_TOLERANCE`
 
 
 @dataclass(frozen=True)
@@ -296,14 +295,14 @@ class LaplaceLikelihood(PopulationModel):
         `TRUSTED_DECREMENT`, until the step taken from a decrement below `NEWTON_TOLERANCE`
         (Gauss-Newton converges fast on small residuals: the next decrement is about its square). A fixed number of
         exact-Hessian Newton steps, as before, left some rows short of the mode or at a saddle: holes
-        of 100 to 1000 in the log-posterior between neighbouring walkers, which kept the sampler's
-        acceptance at 0.1.
+        of 100 to 1000 in the log-posterior between neighbouring walkers (rows that gain nothing stay
+        where they are and leave the iteration: the loop keeps the best point found).
         """
         pop, constants = self._population(theta)
         n, (tests, k), r = theta.shape[0], self.f_obs.shape, self.joint_group.size
         x = _Latent(np.broadcast_to(self.z_start, (n,) + self.z_start.shape).copy(), np.zeros((n, tests)),
                     np.zeros((n, k)))
-        active, stuck = np.arange(n), 0
+        active = np.arange(n)
         for _ in range(NEWTON_ITERATIONS):
             p, here = pop.take(active), x.take(active)
             local = self._evaluate(p, here, grad=True)
@@ -327,14 +326,13 @@ class LaplaceLikelihood(PopulationModel):
                 x.put(active[moving[good]], trial.take(np.flatnonzero(good)))
                 moving = moving[~good]
                 alpha[moving] *= 0.5
-            stuck += moving.size  # no step gained: left where they are
             # after a step from a decrement below the tolerance, the next one is of its square: settled
             active = active[(decrement >= NEWTON_TOLERANCE) & ~np.isin(np.arange(active.size), moving)]
             if active.size == 0:
                 break
-        return self._laplace(pop, x, constants, unsettled=stuck + active.size)
+        return self._laplace(pop, x, constants)
 
-    def _laplace(self, pop: _Population, x: _Latent, constants: np.ndarray, unsettled: int) -> _Mode:
+    def _laplace(self, pop: _Population, x: _Latent, constants: np.ndarray) -> _Mode:
         """The Laplace terms (module docstring) at the integrand's mode ``x`` (`_mode`), with the exact Hessian."""
         n, k = x.delta.shape
         local = self._evaluate(pop, x, grad=True)
@@ -345,7 +343,7 @@ class LaplaceLikelihood(PopulationModel):
         if pop.inv_u is not None:  # u's normal law's constant
             per_test = per_test + 0.5 * np.log(pop.inv_u) - 0.5 * LOG_2PI
         if pop.inv_d is None:
-            return _Mode(x.z, per_test, np.zeros(n), x.delta, np.zeros((n, k)), unsettled)
+            return _Mode(x.z, per_test, np.zeros(n), x.delta, np.zeros((n, k)))
         # the discrepancy's marginal precision is the Schur complement of the tests' blocks
         coupling = q[..., None] * local.jac
         schur = _schur(q, local.f, pop.inv_d, coupling, np.linalg.solve(hess, np.swapaxes(coupling, -1, -2)))
@@ -353,7 +351,7 @@ class LaplaceLikelihood(PopulationModel):
         shared = (local.shared + 0.5 * k * np.log(pop.inv_d[:, 0])
                   + np.where(sign_s > 0, -0.5 * log_det_s, -np.inf))  # the K (1/2) log 2 pi cancel
         sd = np.sqrt(np.clip(np.diagonal(np.linalg.inv(schur), axis1=-2, axis2=-1), 0.0, None))
-        return _Mode(x.z, per_test, shared, x.delta, sd, unsettled)
+        return _Mode(x.z, per_test, shared, x.delta, sd)
 
 
 def _schur(q: np.ndarray, f: np.ndarray, inv_d: np.ndarray, coupling: np.ndarray, solved: np.ndarray) -> np.ndarray:
