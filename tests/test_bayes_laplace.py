@@ -148,3 +148,58 @@ def test_the_log_likelihood_is_smooth_between_posterior_points_and_its_newton_se
     finally:
         for name, value in saved.items():
             setattr(laplace, name, value)
+
+
+@pytest.mark.parametrize("shape", [(6, 4), (2, 5)])
+@pytest.mark.parametrize("terms", [ErrorTerms(True, True), ErrorTerms(True, False), ErrorTerms(False, True),
+                                   ErrorTerms(False, False)])
+def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shape):
+    # More joints than modes (the Woodbury path) and fewer (the direct path), one mode missing in one
+    # test: both steps against the whole latent system assembled densely, its Jacobian by finite
+    # differences of the forward model and its gradient by finite differences of the log integrand
+    from workbench.identify.laplace import LaplaceLikelihood, _gauss_newton_step, _Latent, _solve
+
+    rng = np.random.default_rng(3)
+    (r, k), tests, p = shape, 3, shape[0] + terms.common
+    forward = AnchoredForward(0.1 * rng.standard_normal((tests, r)), rng.uniform(1e6, 4e6, (tests, k)),
+                              rng.uniform(1e4, 2e5, (tests, k, r)))
+    f_obs = forward(forward.anchor) * (1 + 0.003 * rng.standard_normal((tests, k)))
+    mask = np.ones((tests, k), bool)
+    mask[1, 0] = False
+    lm = LaplaceLikelihood(forward, np.where(mask, f_obs, 0.0), mask, f_obs.mean(axis=0), np.arange(r) % 2,
+                           np.array([1.0, 1.0]), forward.anchor, terms)
+    scales = {"common_error": 4e-3, "discrepancy_scale": 6e-3}
+    theta = np.r_[0.02, -0.03, np.log([0.1, 0.2]), np.full(k, np.log(2e-3)), np.log([scales[n] for n in terms.names])]
+    pop, _ = lm._population(theta[None])
+    x = _Latent(forward.anchor[None] + 0.05 * rng.standard_normal((1, tests, r)),
+                0.002 * rng.standard_normal((1, tests)) * terms.common,
+                0.002 * rng.standard_normal((1, k)) * terms.discrepancy)
+    local = lm._evaluate(pop, x, grad=True)
+    fast = _gauss_newton_step(local, pop)
+    direct = _solve(local, *lm._hessian(local, pop, exact=False), pop.inv_d)
+
+    def unpack(xi):  # the dense system's latents: (z_t, u_t) per test, then delta
+        blocks = xi[:tests * p].reshape(tests, p)
+        u = blocks[:, r] if terms.common else np.zeros(tests)
+        delta = xi[tests * p:] if terms.discrepancy else np.zeros(k)
+        return _Latent(blocks[None, :, :r], u[None], delta[None])
+
+    def model_f(xi):
+        at = unpack(xi)
+        return (forward(at.z[0]) * np.exp(at.u[0][:, None] + at.delta[0][None, :])).ravel()
+
+    def objective(xi):
+        return lm._evaluate(pop, unpack(xi), grad=False).objective[0]
+
+    xi0 = np.r_[np.concatenate([x.z[0], x.u[0][:, None]], axis=1).ravel() if terms.common else x.z[0].ravel(),
+                x.delta[0] if terms.discrepancy else []]
+    h, n = 1e-6, xi0.size
+    jac = np.stack([(model_f(xi0 + h * e) - model_f(xi0 - h * e)) / (2 * h) for e in np.eye(n)], axis=1)
+    grad = np.array([(objective(xi0 + h * e) - objective(xi0 - h * e)) / (2 * h) for e in np.eye(n)])
+    prior = np.concatenate([np.c_[local.e[0], np.full((tests, 1), pop.inv_u[0, 0])].ravel() if terms.common
+                            else local.e[0].ravel(), np.full(k, pop.inv_d[0, 0]) if terms.discrepancy else []])
+    dense = jac.T @ (np.where(mask, pop.w[0], 0.0).ravel()[:, None] * jac) + np.diag(prior)
+    step = np.linalg.solve(dense, grad)
+    for got in (fast, direct):
+        flat = np.r_[got[0][0].ravel(), got[1][0] if terms.discrepancy else []]
+        assert np.allclose(flat, step, rtol=1e-4, atol=1e-6 * np.max(np.abs(step)))

@@ -154,22 +154,56 @@ class _Local:
         return self.per_test.sum(axis=1) + self.shared
 
 
+def _gauss_newton_step(local: _Local, pop: _Population) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Newton's step ``H^-1 grad`` in every test's ``(z_t, u_t)`` (N, T, p) and in delta (N, K).
+
+    Each test's block ``H_t = G_t^T G_t + D_t`` (``G_t = W_t^(1/2) J_t``, K x p, ``D_t`` the priors'
+    diagonal: the Gamma laws' ``e`` and ``1 / s_u^2``) is inverted by Woodbury through its K x K
+    capacitance ``C_t = I + G_t D_t^-1 G_t^T``: the data have rank K, so a 20-joint frame (p = 21,
+    K = 10) solves 10 x 10 systems, not 21 x 21. The same algebra gives delta's Schur complement
+    ``S = 1 / s_delta^2 + sum_t V_t C_t^-1 V_t`` (``V_t = W_t^(1/2) f_t``, the coupling
+    ``H_t,delta = G_t^T V_t``), and
+
+        step_d = S^-1 (grad_d - sum_t V_t C_t^-1 Gd_t grad_t),
+        step_t = grad_t / D_t - Gd_t^T C_t^-1 (Gd_t grad_t + V_t step_d),   Gd_t = G_t D_t^-1.
+
+    Woodbury's form with ``I +`` (not ``W^-1 +``) keeps a mode a test lacks (``w = 0``) harmless.
+    """
+    root_w = np.sqrt(pop.w)
+    diagonal = local.e if pop.inv_u is None else np.concatenate(
+        [local.e, np.broadcast_to(pop.inv_u[:, :, None], local.e.shape[:-1] + (1,))], axis=-1)
+    g = root_w[..., None] * local.jac[..., :diagonal.shape[-1]]  # (N, T, K, p)
+    gd = g / diagonal[..., None, :]
+    k = g.shape[-2]
+    c_inv = np.linalg.inv(np.eye(k) + gd @ np.swapaxes(g, -1, -2))  # (N, T, K, K)
+    y = (c_inv @ (gd @ local.grad[..., None]))[..., 0]  # C^-1 Gd grad, (N, T, K)
+    if pop.inv_d is None:
+        step_d = np.zeros(local.grad_d.shape)
+    else:
+        v = root_w * local.f  # (N, T, K)
+        schur = np.sum(v[..., :, None] * c_inv * v[..., None, :], axis=1) + pop.inv_d[:, :, None] * np.eye(k)
+        step_d = np.linalg.solve(schur, (local.grad_d - np.sum(v * y, axis=1))[..., None])[..., 0]
+        y = y + (c_inv @ (v * step_d[:, None, :])[..., None])[..., 0]
+    step = local.grad / diagonal - (np.swapaxes(gd, -1, -2) @ y[..., None])[..., 0]
+    return step, step_d
+
+
 def _solve(local: _Local, hess: np.ndarray, q: np.ndarray, inv_d: np.ndarray | None
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+           ) -> tuple[np.ndarray, np.ndarray]:
     """Newton's step ``H^-1 grad`` of the block-arrow system: each test's block ``hess`` (N, T, p, p),
-    coupled to delta through ``q`` (N, T, K) (`_hessian`); the step in ``(z_t, u_t)`` (N, T, p), in delta
-    (N, K) and delta's Schur complement (N, K, K) (None without the discrepancy term).
+    coupled to delta through ``q`` (N, T, K) (`_hessian`), solved directly (`_gauss_newton_step` when the
+    data's rank K is below p); the step in ``(z_t, u_t)`` (N, T, p) and in delta (N, K).
     """
     k = q.shape[-1]
     if inv_d is None:
-        return np.linalg.solve(hess, local.grad[..., None])[..., 0], np.zeros(local.grad_d.shape), None
+        return np.linalg.solve(hess, local.grad[..., None])[..., 0], np.zeros(local.grad_d.shape)
     coupling = q[..., None] * local.jac  # (N, T, K, p): d2/dx_i ddelta_k of minus the log integrand
     solved = np.linalg.solve(hess, np.concatenate([np.swapaxes(coupling, -1, -2), local.grad[..., None]], axis=-1))
     schur = _schur(q, local.f, inv_d, coupling, solved[..., :k])
     reduced = local.grad_d - _over_tests(coupling, solved[..., k:])[..., 0]
     step_d = np.linalg.solve(schur, reduced[..., None])
     step = solved[..., k] - (solved[..., :k] @ step_d[:, None])[..., 0]
-    return step, step_d[..., 0], schur
+    return step, step_d[..., 0]
 
 
 @dataclass(frozen=True)
@@ -306,7 +340,10 @@ class LaplaceLikelihood(PopulationModel):
         for _ in range(NEWTON_ITERATIONS):
             p, here = pop.take(active), x.take(active)
             local = self._evaluate(p, here, grad=True)
-            step_x, step_d, _ = _solve(local, *self._hessian(local, p, exact=False), p.inv_d)
+            if k < r + (p.inv_u is not None):  # the data's rank is below each test's block: Woodbury
+                step_x, step_d = _gauss_newton_step(local, p)
+            else:
+                step_x, step_d = _solve(local, *self._hessian(local, p, exact=False), p.inv_d)
             decrement = np.sum(local.grad * step_x, axis=(1, 2)) + np.sum(local.grad_d * step_d, axis=1)
             step = _Latent(step_x[..., :r], step_x[..., r] if p.inv_u is not None else np.zeros(here.u.shape), step_d)
             largest_z = np.max(np.abs(step.z), axis=(1, 2))
