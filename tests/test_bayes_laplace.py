@@ -203,3 +203,41 @@ def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shap
     for got in (fast, direct):
         flat = np.r_[got[0][0].ravel(), got[1][0] if terms.discrepancy else []]
         assert np.allclose(flat, step, rtol=1e-4, atol=1e-6 * np.max(np.abs(step)))
+
+
+def test_the_group_means_stay_where_the_anchored_forward_model_holds(two_joints):
+    # the trust region: TRUST_RADIUS about the anchors' mean per group, then about where it was re-anchored
+    from workbench.identify.laplace import TRUST_RADIUS
+
+    _, _, lm, _ = two_joints
+    centre = np.array([lm.z_start[:, lm.joint_group == g].mean() for g in range(lm.n_groups)])
+    for shift, finite in [(0.9 * TRUST_RADIUS, True), (1.1 * TRUST_RADIUS, False), (-1.1 * TRUST_RADIUS, False)]:
+        theta = _theta(lm, shift=tuple(centre + np.array([shift, 0.0])))
+        assert np.isfinite(lm.log_posterior(theta[None])[0]) == finite
+    moved = _theta(lm, shift=tuple(centre + 0.2))
+    again, _ = lm.reanchored(moved)
+    assert np.allclose(again.mean_bounds.mean(axis=1), centre + 0.2)
+    assert np.isfinite(again.log_posterior(_theta(lm, shift=tuple(centre + 0.45))[None])[0])
+
+
+def test_a_group_at_its_trust_edge_is_a_failed_identification():
+    from types import SimpleNamespace
+
+    from workbench.identify.bayes import Posterior
+    from workbench.identify.likelihood import COV_BOUNDS, MODULUS_BOUNDS_PA
+    from workbench.identify.record import TRUST_EDGE_FAILURE, bound_failures, identification_record
+    from workbench.model.frame_file import read_frame
+
+    frame = read_frame(TWO_BOLT)
+    groups = ("vertical", "horizontal")
+    members = tuple(tuple(j.name for j in frame.joints if j.group == g) for g in groups)
+    fit = SimpleNamespace(joints=members, groups=groups, youngs_modulus=np.array([2.4e10, 7e10]),
+                          youngs_modulus_ci95=np.array([[2.2e10, 2.6e10], [6e10, 8e10]]), cov=np.array([0.09, 0.2]),
+                          cov_ci95=np.array([[0.05, 0.14], [0.1, 0.3]]), trust_reached=("horizontal",),
+                          mean_box_pa=MODULUS_BOUNDS_PA, cov_box=COV_BOUNDS)
+    fit.joint_records = lambda: Posterior.joint_records(fit)
+    record = identification_record("c", "bayes", frame, fit, [1, 2], 1.0)
+    assert all(record["joints"][name].get("at_bound") for name in members[1])
+    assert not any(record["joints"][name].get("at_bound") for name in members[0])
+    failures = bound_failures(record, fit)
+    assert len(failures) == len(members[1]) and all(TRUST_EDGE_FAILURE in f for f in failures)

@@ -79,9 +79,8 @@ def _start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
     # down to what the data need, whereas from a small value it is flat (the latent shifts then sit
     # on their prior's zero) and the optimiser would stay there
     x0 = np.concatenate([eps0, np.log(c0), np.log(sig0), np.log(np.asarray(lm.extra_scales, float))])
-    ref = np.log(lm.reference_pa)
     inner = 1e-6
-    bounds = ([(math.log(MODULUS_BOUNDS_PA[0]) - r + inner, math.log(MODULUS_BOUNDS_PA[1]) - r - inner) for r in ref]
+    bounds = ([(lo + inner, hi - inner) for lo, hi in lm.mean_bounds]
               + [(math.log(COV_BOUNDS[0]) + inner, math.log(COV_BOUNDS[1]) - inner)] * g
               + [(math.log(SIGMA_BOUNDS[0]) + inner, math.log(SIGMA_BOUNDS[1]) - inner)] * lm.fbar.size
               + [(math.log(lo) + inner, math.log(hi) - inner) for lo, hi in extra])
@@ -136,6 +135,9 @@ class Posterior:
         ``s_u``, ``discrepancy_scale`` ``s_delta``, relative; `workbench.identify.laplace`), (E,), (E, 2).
     discrepancy, discrepancy_ci95 : (K,), (K, 2) each mode's discrepancy ``delta_k`` (relative), or
         None without that term: the posterior over the sampled parameters of its Laplace law.
+    trust_reached : the groups whose posterior mean modulus reaches the edge of the region where the
+        anchored forward model holds (`workbench.identify.laplace.LaplaceLikelihood.mean_bounds`), after
+        anchoring a second time where the posterior was: a result the data and that model cannot place.
     reference_pa : (G,) the preliminary fit's moduli (the forward table's centre).
     forward : "exact" or "smr2"; forward_error : the table's largest relative error between nodes.
     parameter_names : the sampled parameters, in ``rhat``/``ess``/``autocorr_time`` order
@@ -176,6 +178,7 @@ class Posterior:
     error_scales_ci95: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     discrepancy: np.ndarray | None = None
     discrepancy_ci95: np.ndarray | None = None
+    trust_reached: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         g, k = len(self.groups), np.asarray(self.modes).size
@@ -207,6 +210,8 @@ class Posterior:
                 out[name] = {"youngs_modulus": float(self.youngs_modulus[g]), "cov": float(self.cov[g]),
                              "youngs_modulus_ci95": [float(v) for v in self.youngs_modulus_ci95[g]],
                              "cov_ci95": [float(v) for v in self.cov_ci95[g]]}
+                if self.groups[g] in self.trust_reached:  # the search interval's edge here (contract section 3)
+                    out[name]["at_bound"] = True
         return out
 
     def error_records(self) -> dict[str, object]:
@@ -300,13 +305,10 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
     walkers = walkers or max(24, 2 * ndim + 2)
     walkers += walkers % 2
     rng = np.random.default_rng(seed)
-    x_map, initial = _start(lm, walkers, rng)
-    if isinstance(lm, LaplaceLikelihood):  # anchor again where the population puts each test (anchored.py)
-        lm, forward_error = lm.reanchored(x_map)
-        _, initial = _start(lm, walkers, rng)
-    sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
-                           max_steps=max_steps, independence=burn > 0)
+    lm, sampler, forward_error, reached = _sample(lm, walkers, steps, burn, seed, max_steps, progress, forward_error,
+                                                  rng)
     chain = sampler.get_chain()  # (steps, walkers, D)
+    trust_reached = tuple(groups.groups[i] for i in np.flatnonzero(reached))
     steps = chain.shape[0]
     lp = sampler.get_log_prob().T  # (walkers, steps)
     tau = _autocorr_time(sampler)
@@ -347,7 +349,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         acceptance_fraction=float(np.mean(sampler.acceptance_fraction)),
         walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata,
         error_names=terms.names, error_scales=q[1, 2 * g + k:], error_scales_ci95=q[[0, 2], 2 * g + k:].T,
-        **_discrepancy(lm, chain, rng))
+        trust_reached=trust_reached, **_discrepancy(lm, chain, rng))
     if not post.converged:
         log.warning("%s: the chains have not converged (max R-hat %.3f, limit %.2f; min ESS %.0f, limit %d; "
                     "%d steps)", measured.source, rhat.max(), RHAT_LIMIT, ess.min(), ESS_LIMIT, steps)
@@ -396,11 +398,51 @@ def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.array([float(az.rhat(p)) for p in per]), np.array([float(az.ess(p)) for p in per]))
 
 
+def _sample(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps: int, burn: int, seed: int,
+            max_steps: int | None, progress: Progress | None, forward_error: float, rng: np.random.Generator
+            ) -> tuple[LikelihoodModel | LaplaceLikelihood, Any, float, np.ndarray]:
+    """The ensemble run of `bayes_identify`: the likelihood it ran on, emcee's sampler, the forward model's
+    error and (G,) which groups reach their trust region's edge (`_at_trust_edge`; none with quadrature).
+
+    A Laplace likelihood is anchored again where the MAP population puts each test
+    (`workbench.identify.anchored`); where the posterior then leans on the edge of the region those
+    anchors hold (`LaplaceLikelihood.mean_bounds`), it is anchored at the posterior's median and run again.
+    """
+    x_map, initial = _start(lm, walkers, rng)
+    if isinstance(lm, LaplaceLikelihood):
+        lm, forward_error = lm.reanchored(x_map)
+        _, initial = _start(lm, walkers, rng)
+    sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
+                           max_steps=max_steps, independence=burn > 0)
+    if not isinstance(lm, LaplaceLikelihood):
+        return lm, sampler, forward_error, np.zeros(lm.n_groups, bool)
+    chain = sampler.get_chain()
+    if np.any(_at_trust_edge(lm, chain)):
+        lm, forward_error = lm.reanchored(np.median(chain.reshape(-1, chain.shape[-1]), axis=0))
+        _, initial = _start(lm, walkers, rng)
+        sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
+                               max_steps=max_steps, independence=burn > 0)
+    return lm, sampler, forward_error, _at_trust_edge(lm, sampler.get_chain())
+
+
+def _at_trust_edge(lm: LaplaceLikelihood, chain: np.ndarray) -> np.ndarray:
+    """(G,) whether each group's log mean modulus in ``chain`` (steps, walkers, D) comes within `TRUST_EDGE`
+    of a side of its trust region that is inside the prior's support (its 0.5 % or 99.5 % quantile).
+    """
+    g = lm.n_groups
+    eps = chain.reshape(-1, chain.shape[-1])[:, :g]
+    low, high = np.quantile(eps, [0.005, 0.995], axis=0)
+    box, prior = lm.mean_bounds, lm.support_mean_bounds
+    return (((low < box[:, 0] + TRUST_EDGE) & (box[:, 0] > prior[:, 0]))
+            | ((high > box[:, 1] - TRUST_EDGE) & (box[:, 1] < prior[:, 1])))
+
+
 def _settled(chain: np.ndarray) -> bool:
     rhat, ess = chain_diagnostics(chain)
     return settled(rhat, ess)
 
 
+TRUST_EDGE = 0.03  # log units: a posterior this close to its trust region's edge leans on it
 DISCREPANCY_DRAWS = 400  # posterior draws whose discrepancy law is evaluated for its summary
 
 

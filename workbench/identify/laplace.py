@@ -24,7 +24,8 @@ cannot produce is the discrepancy's, and it widens the means' intervals by what 
 Y0)`` and ``u_t``, and the shared ``delta``. Gauss-Newton with a line search finds the joint mode of
 the integrand (`LaplaceLikelihood._mode`);
 its Hessian is block-arrow (each test's block couples to ``delta`` only), so each step solves the
-tests' small blocks and a K x K Schur complement for ``delta``, and
+tests' small blocks (through their K x K capacitance when there are more joints than modes,
+`_gauss_newton_step`) and a K x K Schur complement for ``delta``, and
 
     log p(f | theta) ~ log p(f, x*, delta* | theta) + (n / 2) log 2 pi - (1 / 2) log det H,
 
@@ -51,6 +52,7 @@ from workbench.identify.likelihood import LOG_2PI, PopulationModel, gamma_log_de
 from workbench.model.structure import Structure, structure_at_moduli
 
 __all__ = ["ErrorTerms", "ERROR_TERMS", "COMMON_BOUNDS", "DISCREPANCY_BOUNDS", "COMMON_SCALE", "DISCREPANCY_SCALE",
+           "TRUST_RADIUS",
            "NEWTON_ITERATIONS", "NEWTON_TOLERANCE", "LaplaceLikelihood", "laplace_likelihood"]
 
 NEWTON_ITERATIONS = 30  # at most; the four-bolt frame's rows settle in 3 to 6
@@ -62,6 +64,7 @@ COMMON_BOUNDS = (1e-5, 0.02)  # s_u: a test's common relative shift; 0.02 is 60 
 DISCREPANCY_BOUNDS = (1e-5, 0.05)  # s_delta: a model off by more than 5 % per mode needs updating, not a term
 COMMON_SCALE = 0.005  # half-normal scales: a test shifting all its modes by 0.5 %, a model off by 1 % per mode
 DISCREPANCY_SCALE = 0.01
+TRUST_RADIUS = 0.3  # how far a group's log mean modulus may go from the anchors' population (mean_bounds)
 MAX_Z_STEP = 0.5  # largest Newton step in log-modulus
 MAX_SHIFT_STEP = 0.05  # largest Newton step in u and delta (relative frequency)
 
@@ -231,6 +234,26 @@ class LaplaceLikelihood(PopulationModel):
     terms: ErrorTerms = field(default_factory=ErrorTerms)
     refit: Callable[[np.ndarray], tuple[AnchoredForward, float]] | None = field(default=None, compare=False,
                                                                                repr=False)
+    trust_centre: np.ndarray | None = None
+
+    @property
+    def mean_bounds(self) -> np.ndarray:
+        """(G, 2) the prior's support of ``log(E_g / Y0_g)`` within `TRUST_RADIUS` of ``trust_centre`` (the
+        population the anchors were placed for; by default the anchors' mean per group).
+
+        Why: the anchored forward model holds near its anchors (second order in the distance). Far
+        from them it is wrong by far more than the measurement error, and the discrepancy term then
+        absorbs that error: on the 20-joint frame of `benchmarks/bayes_many_joints.py` (10 modes), with
+        the group means at a quarter of their values the forward model was off by 7.6 %, the
+        discrepancy took 4-6 % per mode, and that point's log-posterior exceeded the truth's by 80;
+        anchored there, its log-posterior fell by 350. Within the radius, a group's mean moves each
+        test's moduli by at most about a third, where the forward model's error stays small.
+        """
+        box = self.support_mean_bounds
+        centre = self.trust_centre if self.trust_centre is not None else np.array(
+            [self.z_start[:, self.joint_group == g].mean() for g in range(self.n_groups)])
+        return np.stack([np.maximum(box[:, 0], centre - TRUST_RADIUS), np.minimum(box[:, 1], centre + TRUST_RADIUS)],
+                        axis=1)
 
     @property
     def extra_bounds(self) -> tuple[tuple[float, float], ...]:
@@ -264,7 +287,8 @@ class LaplaceLikelihood(PopulationModel):
         if self.refit is None:
             raise ValueError("reanchored: this likelihood was built without its model (laplace_likelihood builds it)")
         forward, error = self.refit(self._mode(np.atleast_2d(np.asarray(theta, float))[:1]).z[0])
-        return replace(self, table=forward, z_start=forward.anchor), error
+        theta = np.atleast_2d(np.asarray(theta, float))[0]
+        return replace(self, table=forward, z_start=forward.anchor, trust_centre=theta[:self.n_groups]), error
 
     def _population(self, theta: np.ndarray) -> tuple[_Population, np.ndarray]:
         """The integrand's population terms of ``theta`` (N, D), and the normalising constants (N, T)."""

@@ -179,11 +179,21 @@ class PopulationModel:
         g = self.n_groups
         return theta[:, :g], theta[:, g:2 * g], theta[:, 2 * g:2 * g + self.fbar.size]
 
+    @property
+    def support_mean_bounds(self) -> np.ndarray:
+        """(G, 2) the prior's support of each group's ``log(E_g / Y0_g)`` (`MODULUS_BOUNDS_PA`)."""
+        return np.log(np.asarray(MODULUS_BOUNDS_PA))[None, :] - np.log(self.reference_pa)[:, None]
+
+    @property
+    def mean_bounds(self) -> np.ndarray:
+        """(G, 2) where each group's ``log(E_g / Y0_g)`` may go: here the prior's support."""
+        return self.support_mean_bounds
+
     def log_prior(self, theta: np.ndarray) -> np.ndarray:
         """Log prior density of ``theta`` (N, D) up to a constant; -inf outside the bounds."""
         eps, log_c, log_s = self._split(theta)
-        log_e = eps + np.log(self.reference_pa)
-        inside = (np.all((log_e > math.log(MODULUS_BOUNDS_PA[0])) & (log_e < math.log(MODULUS_BOUNDS_PA[1])), axis=1)
+        box = self.mean_bounds
+        inside = (np.all((eps > box[:, 0]) & (eps < box[:, 1]), axis=1)
                   & np.all((log_c > math.log(COV_BOUNDS[0])) & (log_c < math.log(COV_BOUNDS[1])), axis=1)
                   & np.all((log_s > math.log(SIGMA_BOUNDS[0])) & (log_s < math.log(SIGMA_BOUNDS[1])), axis=1))
         density = log_c.sum(axis=1) + sigma_log_prior(log_s)

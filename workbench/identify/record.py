@@ -13,6 +13,9 @@ from workbench.model.matrix_model import MatrixModel
 __all__ = ["BOUND_TOLERANCE", "RHAT_LIMIT", "ESS_LIMIT", "settled", "identification_record", "bound_failures",
            "sampler_diagnostics"]
 
+# a Bayesian fit whose group mean leans on the region where its forward model holds (Posterior.trust_reached)
+TRUST_EDGE_FAILURE = ("its group's posterior mean modulus reaches the edge of the region where the Laplace "
+                      "likelihood's anchored forward model holds, after anchoring again where the posterior was")
 # CONTRACTS.md section 3: an estimate within 1 % of a bound of its search interval is a failed identification
 BOUND_TOLERANCE = 0.01
 # a sampled estimate is stood behind when every parameter's R-hat is at most this and its bulk
@@ -92,7 +95,7 @@ def _at_bounds(entry: dict, fit: Any) -> list[str]:
 
 def bound_failures(record: dict, fit: Any) -> list[str]:
     """One message per joint whose estimate sits on a bound of its search interval (CONTRACTS.md section 3)."""
-    return [f"joint {name!r}: {'; '.join(_at_bounds(entry, fit))}"
+    return [f"joint {name!r}: {'; '.join(_at_bounds(entry, fit) or [TRUST_EDGE_FAILURE])}"
             for name, entry in record["joints"].items() if entry.get("at_bound")]
 
 
