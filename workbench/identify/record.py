@@ -15,7 +15,9 @@ __all__ = ["BOUND_TOLERANCE", "RHAT_LIMIT", "ESS_LIMIT", "settled", "identificat
 
 # a Bayesian fit whose group mean leans on the region where its forward model holds (Posterior.trust_reached)
 TRUST_EDGE_FAILURE = ("its group's posterior mean modulus reaches the edge of the region where the Laplace "
-                      "likelihood's anchored forward model holds, after anchoring again where the posterior was")
+                      "likelihood's anchored forward model holds, after anchoring again where the posterior was "
+                      "(a per-mode discrepancy can stand in for the joints' means when there are few modes for "
+                      "the joints: --errors common leaves it out)")
 # CONTRACTS.md section 3: an estimate within 1 % of a bound of its search interval is a failed identification
 BOUND_TOLERANCE = 0.01
 # a sampled estimate is stood behind when every parameter's R-hat is at most this and its bulk
