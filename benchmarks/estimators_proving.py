@@ -116,8 +116,19 @@ def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int,
                              "population": float(population), "sample": float(sampled),
                              "converged": converged, "wall_time_s": walls[estimator], "extract_s": extract_s,
                              "modes_found": int(np.sum(np.all(np.isfinite(data.frequency_hz), axis=0))),
-                             "modes_dropped": dropped})
+                             "modes_dropped": dropped, **_error_terms(fit)})
     return rows
+
+
+def _error_terms(fit: Any) -> dict:
+    """A Bayesian fit's error terms (medians, relative), so that a study's rows can be read for where the
+    model's error went without running it again: each mode's measurement error, the common error and
+    discrepancy scales, each mode's discrepancy; nothing for moment matching."""
+    if not hasattr(fit, "error_records"):
+        return {}
+    return {"modes": [int(m) for m in fit.modes], "sigma": [float(v) for v in fit.sigma],
+            "error_scales": dict(zip(fit.error_names, map(float, fit.error_scales))),
+            "discrepancy": None if fit.discrepancy is None else [float(v) for v in fit.discrepancy]}
 
 
 def _task(_shared: None, job: tuple[str, int, int, int, int, tuple[str, ...]]) -> list[dict]:
