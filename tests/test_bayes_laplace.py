@@ -217,7 +217,8 @@ def test_the_group_means_stay_where_the_anchored_forward_model_holds(two_joints)
     moved = _theta(lm, shift=tuple(centre + 0.2))
     again, _ = lm.reanchored(moved)
     assert np.allclose(again.mean_bounds.mean(axis=1), centre + 0.2)
-    assert np.isfinite(again.log_posterior(_theta(lm, shift=tuple(centre + 0.45))[None])[0])
+    beyond = _theta(lm, shift=tuple(centre + 0.2 + 0.9 * TRUST_RADIUS))
+    assert np.isfinite(again.log_posterior(beyond[None])[0]) and not np.isfinite(lm.log_posterior(beyond[None])[0])
 
 
 def test_a_group_at_its_trust_edge_is_a_failed_identification():
