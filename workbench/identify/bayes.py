@@ -417,12 +417,14 @@ def _sample(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps: int, b
     if not isinstance(lm, LaplaceLikelihood):
         return lm, sampler, forward_error, np.zeros(lm.n_groups, bool)
     chain = sampler.get_chain()
-    if np.any(_at_trust_edge(lm, chain)):
+    reached = _at_trust_edge(lm, chain)
+    if np.any(reached):
         lm, forward_error = lm.reanchored(np.median(chain.reshape(-1, chain.shape[-1]), axis=0))
         _, initial = _start(lm, walkers, rng)
         sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
                                max_steps=max_steps, independence=burn > 0)
-    return lm, sampler, forward_error, _at_trust_edge(lm, sampler.get_chain())
+        reached = _at_trust_edge(lm, sampler.get_chain())
+    return lm, sampler, forward_error, reached
 
 
 def _at_trust_edge(lm: LaplaceLikelihood, chain: np.ndarray) -> np.ndarray:

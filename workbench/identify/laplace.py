@@ -289,9 +289,9 @@ class LaplaceLikelihood(PopulationModel):
         """
         if self.refit is None:
             raise ValueError("reanchored: this likelihood was built without its model (laplace_likelihood builds it)")
-        forward, error = self.refit(self._mode(np.atleast_2d(np.asarray(theta, float))[:1]).z[0])
-        theta = np.atleast_2d(np.asarray(theta, float))[0]
-        return replace(self, table=forward, z_start=forward.anchor, trust_centre=theta[:self.n_groups]), error
+        theta = np.atleast_2d(np.asarray(theta, float))[:1]
+        forward, error = self.refit(self._mode(theta).z[0])
+        return replace(self, table=forward, z_start=forward.anchor, trust_centre=theta[0, :self.n_groups]), error
 
     def _population(self, theta: np.ndarray) -> tuple[_Population, np.ndarray]:
         """The integrand's population terms of ``theta`` (N, D), and the normalising constants (N, T)."""
