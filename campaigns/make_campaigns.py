@@ -27,7 +27,7 @@ import pandas as pd  # noqa: E402
 from workbench.io.campaign import Campaign, Factor, load_campaign, write_campaign  # noqa: E402
 from workbench.io.outputs import write_outputs  # noqa: E402
 from workbench.model.frame_file import read_frame  # noqa: E402
-from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
+from workbench.plan.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial  # noqa: E402
 from workbench.rig.simulate import LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -99,7 +99,7 @@ def synthetic_readme(name: str, frame_file: str, seed: int, title: str, factors,
         "",
         "Made by `python campaigns/make_campaigns.py` (regenerates every bundled campaign identically).",
         "Tightening levels map to preloads 1 -> 50 N, 2 -> 1800 N, 3 -> 6000 N"
-        + (" ; the sweep's levels are named by their preload in N (`workbench.rig.designs.sweep_preloads()`)."
+        + (" ; the sweep's levels are named by their preload in N (`workbench.plan.designs.sweep_preloads()`)."
            if "sweep" in name else "."),
         "Amplitude: low -> ratio 1, high -> ratio 5." if any(x.kind == "amplitude" for x in factors) else "",
     ]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import shared_path
 
-from workbench.rig.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial
+from workbench.plan.designs import full_factorial, one_defective_at_a_time, sweep_preloads, two_level_factorial
 
 
 def paper_table(name: str) -> list[dict[str, str]]:

@@ -11,18 +11,19 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "workbench"
-NUMERICAL_PACKAGES = ("model", "uq", "extraction", "identify", "diagnose")
+NUMERICAL_PACKAGES = ("model", "uq", "extraction", "identify", "diagnose", "plan")
 # each layer and the layers it may import (ARCHITECTURE.md); a sub-package may import itself
 ALLOWED = {
     "model": set(),
     "uq": {"model"},
     "extraction": {"model"},
     "identify": {"model", "uq", "extraction"},
-    "rig": {"model", "io"},
+    "plan": {"model", "uq", "identify"},
+    "rig": {"model", "io", "plan"},
     "diagnose": {"model", "uq", "extraction", "rig"},
     "io": {"model"},
-    "workflow": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io"},
-    "report": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "workflow"},
+    "workflow": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "plan"},
+    "report": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "workflow", "plan"},
 }
 
 

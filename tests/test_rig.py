@@ -15,7 +15,7 @@ from conftest import REPO, shared_path
 from workbench.io.campaign import Factor, load_campaign
 from workbench.model.frame_file import read_frame
 from workbench.model.modal import add_noise
-from workbench.rig.designs import sweep_preloads
+from workbench.plan.designs import sweep_preloads
 from workbench.rig.effects import EFFECTS, Effect
 from workbench.rig.simulate import JointLaw, LockedStress, RigSettings, simulate_campaign, truth_path, write_with_truth
 

@@ -296,6 +296,21 @@ def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
     return f"{summary['cases']} blind cases; written to {args.out}"
 
 
+def _design(args: argparse.Namespace, out: OutputSet) -> str:
+    from workbench.report.design_page import design_outputs
+    from workbench.workflow.design import PlanSettings, cov_guesses, plan_design, verify_design, with_settings
+    from workbench.workflow.execution import mapper
+
+    settings = with_settings(PlanSettings(), count=args.count, frequency_scatter=args.frequency_scatter, seed=args.seed)
+    with mapper(args.workers, args.scheduler, _progress()) as tasks:
+        plan = plan_design(_structure(args.model), args.budget, args.target, cov_guesses(args.cov), settings, tasks)
+        best = plan.recommended
+        check = verify_design(plan, best.design, args.verify, settings.seed + 1, tasks) if args.verify else None
+    out.commit(design_outputs(plan, check, Path(args.model), Path(args.out)))
+    widths = ", ".join(f"{g} {100 * w:.0f} %" for g, w in zip(plan.groups.groups, best.width[:, 1]))
+    return f"recommended {best.design.name} ({best.design.tests} tests; CoV widths {widths}); written to {args.out}"
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="workbench", description="Identify and propagate the variability of bolted joints "
                      "in light assembled frames (Ghienne, Laurent & Blanze, MSSP 2020).")
@@ -382,6 +397,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
 
+    _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",
+                            _design, ("designs.csv", "design.csv", "campaign.toml", "index.html")))
+
     p = sub.add_parser("validate-diagnosis", help="blind validation of the diagnosis on virtual-rig cases")
     p.add_argument("--cases", type=_positive_int, default=40, help="number of cases (default 40)")
     p.add_argument("--seed", type=int, default=0, help="seed of the hidden effects and the rig (default 0)")
@@ -409,6 +427,22 @@ def _report_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=_positive_int, default=1, help="processes for circle fits and Monte Carlo")
     p.add_argument("--bands", help="circle-fit the campaign's FRFs with these mode bands, 'lo:hi,lo:hi,...' in Hz "
                                    "(also when it has a modes.csv, which is used as it is otherwise)")
+
+
+def _design_options(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``workbench design``."""
+    p.add_argument("model", help="frame.toml or matrix model.toml whose joints are to be identified")
+    p.add_argument("--budget", type=_positive_int, help="most tests the lab can run (default: the full factorial's)")
+    p.add_argument("--target", type=float, default=0.5, help="target 95 %% width of every group's CoV, relative "
+                   "to its value (default 0.5)")
+    p.add_argument("--cov", action="append", metavar="NAME=VALUE", help="a guess of a group's (or joint's) CoV "
+                   "to plan for, where the model's is missing or doubtful; repeat for each")
+    p.add_argument("--count", type=_positive_int, help="modes the identification will use (default 8)")
+    p.add_argument("--frequency-scatter", type=float, help="relative sd of an extracted frequency (default 3e-4)")
+    p.add_argument("--verify", type=int, default=0, metavar="N", help="also identify N simulated campaigns of "
+                   "the recommended design by moment matching and compare (default 0: none)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the virtual campaigns (default 0)")
+    _work_options(p)
 
 
 def _work_options(p: argparse.ArgumentParser) -> None:
@@ -446,7 +480,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _inputs(args: argparse.Namespace) -> list[Path]:
     """The paths a command reads, which --out may neither be, lie inside, nor hold."""
-    paths = [Path(p) for p in (getattr(args, "frame", None), getattr(args, "campaign", None),
+    paths = [Path(p) for p in (getattr(args, "frame", None), getattr(args, "model", None),
+                               getattr(args, "campaign", None),
                                getattr(args, "campaigns", None), getattr(args, "design", None),
                                *(getattr(args, "joints_from", None) or ()), *(getattr(args, "files", None) or ()))
              if p]

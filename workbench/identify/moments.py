@@ -40,7 +40,8 @@ from workbench.uq import smr
 from workbench.uq.limits import COV_LIMIT
 from workbench.uq.stochastic import FrequencyMoments, JointModel
 
-__all__ = ["DEFAULT_START_COV", "MomentFit", "mean_residuals", "cov_residuals", "moment_matching"]
+__all__ = ["DEFAULT_START_COV", "MomentFit", "mean_residuals", "cov_residuals", "moment_matching", "interval_map",
+           "moment_covariance", "SMRForward"]
 
 DEFAULT_START_COV = 0.05  # CoV held during the first step 1 (the paper's step 1 needs one; Table 4: 0.09, 0.22)
 Z95 = 1.959963984540054
@@ -106,7 +107,7 @@ class MomentFit:
     cov_box: tuple[float, float] = (1e-3, COV_LIMIT)
 
 
-class _SMRForward:
+class SMRForward:
     """``(log mean, log cov) -> (mean_hz, std_hz)`` of the paired model modes by the SMR; counts its calls."""
 
     def __init__(self, model: Structure, groups: JointGroups, model_modes: np.ndarray, method: str) -> None:
@@ -161,7 +162,13 @@ def _linear_cov_start(model: Structure, groups: JointGroups, mean_pa: np.ndarray
 
 def _moment_covariance(measured: MeasuredModes, bootstrap: int, seed: int) -> np.ndarray | None:
     """Covariance of the measured (means, CoVs) of the modes over the tests, by a bootstrap of tests."""
-    f = np.asarray(measured.frequency_hz, float)
+    return moment_covariance(np.asarray(measured.frequency_hz, float), bootstrap, seed)
+
+
+def moment_covariance(f: np.ndarray, bootstrap: int, seed: int) -> np.ndarray | None:
+    """Covariance of the (means, CoVs) of the columns of ``f`` (n_tests, n_modes; NaN: not found), by a
+    bootstrap of its rows (tests); None when fewer than 10 resamples hold each mode twice.
+    """
     n_tests = f.shape[0]
     rng = np.random.default_rng(seed)
     draws = f[rng.integers(0, n_tests, size=(bootstrap, n_tests))]  # (B, n_tests, n_modes)
@@ -177,9 +184,14 @@ def _moment_covariance(measured: MeasuredModes, bootstrap: int, seed: int) -> np
     return np.cov(np.concatenate([mean, np.sqrt(var) / mean], axis=1), rowvar=False)
 
 
-def _intervals(forward: Forward, log_mean: np.ndarray, log_cov: np.ndarray,
-               sigma: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Delta-method 95 % intervals of the two-step estimator (see `moment_matching`)."""
+def interval_map(forward: Forward, log_mean: np.ndarray, log_cov: np.ndarray) -> np.ndarray | None:
+    """The linearised two-step estimator: d(log mean, log cov) / d(measured means, CoVs), (2 G, 2 K).
+
+    From the stationarity conditions of both steps at (``log_mean``, ``log_cov``) (finite-difference
+    Jacobians of the forward model, step 1e-3 in the logs). The intervals of `moment_matching` and
+    the design predictions of `workbench.plan` both carry a covariance of the measured moments
+    through it. None when the steps' Hessian is singular.
+    """
     def moments(lm, lc):
         m, s = forward(lm, lc)
         return m, s / m
@@ -206,9 +218,18 @@ def _intervals(forward: Forward, log_mean: np.ndarray, log_cov: np.ndarray,
     gradient[:n_groups, :n_modes] = j_mm.T
     gradient[n_groups:, n_modes:] = j_dc.T
     try:
-        lin = np.linalg.solve(hessian, gradient)
+        return np.linalg.solve(hessian, gradient)
     except np.linalg.LinAlgError:
+        return None
+
+
+def _intervals(forward: Forward, log_mean: np.ndarray, log_cov: np.ndarray,
+               sigma: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Delta-method 95 % intervals of the two-step estimator (see `moment_matching`)."""
+    lin = interval_map(forward, log_mean, log_cov)
+    if lin is None:
         return None, None
+    n_groups = log_mean.size
     sd = np.sqrt(np.clip(np.diag(lin @ sigma @ lin.T), 0.0, None))
     band = Z95 * np.stack([-sd, sd], axis=1)
     return np.exp(log_mean[:, None] + band[:n_groups]), np.exp(log_cov[:, None] + band[n_groups:])
@@ -224,7 +245,7 @@ def _least_squares(residuals: Callable[[np.ndarray], np.ndarray], x0: np.ndarray
     return np.clip(result.x, lo, hi)
 
 
-def _two_steps(model: Structure, groups: JointGroups, forward: _SMRForward, measured_mean: np.ndarray,
+def _two_steps(model: Structure, groups: JointGroups, forward: SMRForward, measured_mean: np.ndarray,
                measured_delta: np.ndarray, log_mean: np.ndarray, log_cov: np.ndarray,
                bounds: tuple[tuple[float, float], tuple[float, float]],
                sweeps: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
@@ -310,7 +331,7 @@ def moment_matching(model: Structure, measured: MeasuredModes, groups: JointGrou
     nominal = nominal_fit(model, measured, groups, start_mean, bounds_pa, pairing, measured_shapes)
     target_mean = np.asarray(measured.mean_hz, float)
     target_delta = np.asarray(measured.cov, float)
-    forward = _SMRForward(model, groups, nominal.model_modes, method)
+    forward = SMRForward(model, groups, nominal.model_modes, method)
     if float(target_delta @ target_delta) == 0.0:
         raise ValueError(f"{measured.source}: std_hz: every measured deviation is 0; no CoV to identify")
     box_m, box_c = (math.log(m_lo), math.log(m_hi)), (math.log(c_lo), math.log(c_hi))

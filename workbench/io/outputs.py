@@ -155,17 +155,21 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 _MARKERS = ("campaign.toml", "model.toml", "frame.toml")  # a campaign or a model folder
-# The source line that opens a campaign written by `workbench import`: the one campaign folder a command
-# may replace (with --force), since it is that command's own earlier output
+# The source line that opens a campaign written by `workbench import` (or `design`): the campaign folders
+# a command may replace (with --force), since they are that command's own earlier output
 IMPORT_STAMP = "workbench import:"
+DESIGN_STAMP = "workbench design:"
+_STAMPS = {"import": IMPORT_STAMP, "design": DESIGN_STAMP}
 
 
-def _imported_campaign(out: Path) -> bool:
+def _own_campaign(out: Path, command: str) -> bool:
+    if command not in _STAMPS:
+        return False
     try:
         text = (out / "campaign.toml").read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
         return False
-    return f'source = "{IMPORT_STAMP}' in text
+    return f'source = "{_STAMPS[command]}' in text
 
 
 class OutputSet:
@@ -196,7 +200,7 @@ class OutputSet:
             raise OutputExistsError(f"{where}: exists and is not a directory")
         entries = sorted(p.name for p in out.iterdir())
         marker = next((m for m in _MARKERS if m in entries), None)
-        if marker and not (self.command == "import" and _imported_campaign(out)):
+        if marker and not (marker == "campaign.toml" and _own_campaign(out, self.command)):
             raise OutputExistsError(f"{where}: holds {marker}, a campaign or model folder; the workbench never "
                                     "writes into one: choose a new or empty directory")
         foreign = [n for n in entries if n not in self.names or not (out / n).is_file()]

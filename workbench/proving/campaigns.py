@@ -41,6 +41,7 @@ from workbench.proving.nuisances import (
     gamma_draws,
     perturb_frame,
     sensor_snr_db,
+    stratified_gamma_draws,
     streams,
     temperature_offsets,
 )
@@ -149,7 +150,8 @@ def _test(built: _Built, moduli: dict[str, float], temperature: float, settings:
 def simulate_campaign(nominal: Frame, article: Article, factors: Sequence[Factor], design: Sequence[Mapping[str, str]],
                       joint_laws: Mapping[str, tuple[float, float]], seed: int,
                       settings: CampaignSettings | None = None, *, name: str = "proving-ground campaign",
-                      description: str = "", progress: Progress | None = None) -> tuple[Campaign, dict[str, Any]]:
+                      description: str = "", progress: Progress | None = None,
+                      strata: Mapping[str, str] | None = None) -> tuple[Campaign, dict[str, Any]]:
     """Measure ``article`` over ``design``: a campaign whose frame file is ``nominal``, and its truth.
 
     Parameters
@@ -159,6 +161,9 @@ def simulate_campaign(nominal: Frame, article: Article, factors: Sequence[Factor
     factors, design : the design's columns and one dict per test (factor name -> level key).
     joint_laws : joint name -> (mean modulus in Pa, coefficient of variation) of its Gamma law over the tests.
     seed : every random draw comes from ``SeedSequence(seed)`` (`workbench.proving.nuisances.streams`).
+    strata : joint name -> the factor whose level picks the joint's draw: level ``l`` of ``L`` (in the
+        factor's order) draws from the ``l``-th of ``L`` equal-probability slices of its law, instead of the
+        whole law (`stratified_gamma_draws`); joints not named draw from the whole law.
 
     Returns
     -------
@@ -175,6 +180,12 @@ def simulate_campaign(nominal: Frame, article: Article, factors: Sequence[Factor
     temperature = temperature_offsets(n, settings.nuisances, rng.tests)
     laws = {j.name: tuple(joint_laws.get(j.name, (j.youngs_modulus, 0.0))) for j in article.frame.joints}
     draws = {j: gamma_draws(mean, cov, n, rng.tests) for j, (mean, cov) in laws.items()}
+    for j, factor_name in (strata or {}).items():
+        factor = next(f for f in factors if f.name == factor_name)
+        keys = list(factor.levels)
+        where = np.array([keys.index(str(test[factor_name])) for test in design])
+        mean, cov = laws[j]
+        draws[j] = stratified_gamma_draws(float(mean), float(cov), where, len(keys), rng.tests)
     amplitude = amplitude_ratios(factors, design)
     soft = {s.joint: s for s in article.softening}
     axis = settings.frequency_axis()

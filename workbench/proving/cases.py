@@ -13,7 +13,7 @@ added damping ratio of 0.1 %, 0.3 %, 1 %. A secondary effect has a third of the 
 Where a mechanism cannot reach a level within its physical bounds (a wire tie's strength, a stinger's
 own mass), the truth records the footprint it reached.
 
-**Designs** (factor and design layout of ``workbench/rig/designs.py``, rebuilt here):
+**Designs** (factor and design layout of ``workbench/plan/designs.py``, rebuilt here):
 
 - ``blind``: the rig's blind cases: 4 tests at low and 4 at high amplitude, alternating; every joint
   scattered between tests by a Gamma law of CoV ``joint_cov`` (0.02) about the file's mean; the nominal file

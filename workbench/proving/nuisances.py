@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+import scipy.special
 
 from workbench.model.frame import Frame
 
@@ -142,6 +143,20 @@ def gamma_draws(mean: float, cov: float, count: int, rng: np.random.Generator) -
     if cov == 0:
         return np.full(count, float(mean))
     return rng.gamma(1.0 / cov**2, mean * cov**2, count)
+
+
+def stratified_gamma_draws(mean: float, cov: float, stratum: np.ndarray, strata: int,
+                           rng: np.random.Generator) -> np.ndarray:
+    """Draws of the same Gamma law as `gamma_draws`, draw ``i`` from the ``stratum[i]``-th (0-based) of ``strata``
+    equal-probability slices of it: a tightening level that spans its own part of the joint's range.
+    """
+    stratum = np.asarray(stratum, int)
+    if cov == 0:
+        return np.full(stratum.shape, float(mean))
+    if np.any((stratum < 0) | (stratum >= strata)):
+        raise ValueError(f"stratified_gamma_draws: strata must lie in 0..{strata - 1}")
+    u = (stratum + rng.random(stratum.shape)) / strata
+    return mean * cov**2 * scipy.special.gammaincinv(1.0 / cov**2, u)
 
 
 def sensor_snr_db(count: int, settings: NuisanceSettings, rng: np.random.Generator) -> np.ndarray:

@@ -392,3 +392,28 @@ def mac_figure(shapes: ShapeComparison) -> Figure:
     ax.set_ylabel("measured mode")
     fig.colorbar(image, ax=ax, label="MAC (-)")
     return fig
+
+
+def design_width_figure(curves: Mapping[str, Mapping[str, tuple[np.ndarray, np.ndarray]]], target: float,
+                        chosen: tuple[int, Mapping[str, float]] | None = None) -> Figure:
+    """Predicted 95 % interval width (%) of each group's CoV against the number of tests, one line per family.
+
+    Parameters
+    ----------
+    curves : group -> family -> (tests, width in %), sorted by tests.
+    target : the target width, %, drawn as a line.  chosen : (tests, group -> width %) of the recommended design.
+    """
+    fig, axes = plt.subplots(1, len(curves), figsize=(5.2 * len(curves), 3.6), squeeze=False, layout="constrained")
+    for ax, (group, families) in zip(axes[0], curves.items()):
+        for family, (tests, width) in families.items():
+            ax.plot(tests, width, "o-", ms=3, lw=1, label=family)
+        ax.axhline(target, color="k", ls="--", lw=0.8, label="target")
+        if chosen is not None:
+            ax.plot(chosen[0], chosen[1][group], "*", ms=14, color="crimson", label="recommended")
+        ax.set_yscale("log")
+        ax.set_xlabel("tests")
+        ax.set_ylabel("predicted 95 % width of the CoV (% of its value)")
+        ax.set_title(f"group {group}")
+        ax.grid(True, which="both", lw=0.3)
+    axes[0, 0].legend(fontsize=7)
+    return fig

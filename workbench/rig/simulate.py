@@ -12,7 +12,7 @@ What a test of the rig is (one row of the design):
    stuck, and vanishes once it is stuck: frequencies rise with tightening toward a limit with
    decreasing increments. One law per joint group (the paper's vertical and horizontal joints).
    `JointLaw.calibrated` sets ``r`` and ``Y_stuck`` so that, over the one-bolt tightening sweep
-   (`workbench.rig.designs.sweep_preloads`, 9 levels) at low amplitude, the modulus has the frame
+   (`workbench.plan.designs.sweep_preloads`, 9 levels) at low amplitude, the modulus has the frame
    file's mean and a chosen CoV (Table 4 of the paper identifies its moduli from that sweep).
    An exponential rather than a logistic law: it has one shape parameter fewer, and the paper's
    sweep, denser at low preload (section 4.2), points at a law steepest at the start.
@@ -83,7 +83,7 @@ from workbench.model.assembly import assemble, joint_energies
 from workbench.model.frame import Frame
 from workbench.model.modal import add_noise, model_modes
 from workbench.model.structure import structure_frf
-from workbench.rig.designs import sweep_preloads
+from workbench.plan.designs import sweep_preloads
 from workbench.rig.effects import (
     AMPLITUDE_SOFTENING,
     DAMAGE_JOINT,
