@@ -304,3 +304,28 @@ def test_sampler_keeps_the_spread_of_a_12d_gaussian():
     chain = sampler.get_chain(flat=True)
     assert abs(chain.std(axis=0).mean() - 1.0) < 0.03
     assert np.all(np.abs(chain.mean(axis=0)) < 0.1)
+
+
+def test_the_map_search_reaches_an_optimum_past_where_the_posterior_is_not_finite():
+    """The first anchors' MAP (`_start`): a steep direction (a measurement scale) beside a shallow one
+    whose optimum is 0.25 away, and a posterior that is not finite far from the start, as the anchored
+    likelihood is. L-BFGS-B on the whole bounds runs its first step into that region and stops where
+    it began; the search in a moving box reaches the optimum."""
+    from scipy.optimize import minimize
+
+    from workbench.identify.bayes import _map_search
+
+    optimum = np.array([0.25, -3.0])
+    scale = np.array([1.0, 30.0])  # curvatures 1 and 900
+
+    def fun(x):
+        if np.abs(x[0]) > 0.45 or abs(x[1] + 3.0) > 0.6:  # off the region the forward model holds
+            return 1e300, np.zeros(2)
+        g = scale**2 * (x - optimum)
+        return float(0.5 * np.sum(scale**2 * (x - optimum) ** 2)), g
+
+    bounds = np.array([[-2.0, 2.0], [-14.0, -1.0]])
+    start = np.array([0.0, -2.6])
+    plain = minimize(fun, start, jac=True, method="L-BFGS-B", bounds=bounds).x
+    assert np.abs(plain - optimum).max() > 0.2  # the failure the box mends
+    assert np.allclose(_map_search(fun, start, bounds), optimum, atol=1e-4)

@@ -248,9 +248,9 @@ class LaplaceLikelihood(PopulationModel):
         discrepancy took 4-6 % per mode, and that point's log-posterior exceeded the truth's by 80;
         anchored there, its log-posterior fell by 350. The radius is the anchors' own broad prior's
         sd (`workbench.identify.anchored.ANCHOR_PRIOR_SD`): a factor of 1.65 either way. A radius of
-        0.3 cut the horizontal mean's posterior of ordinary two- and four-bolt campaigns: the first
-        anchors' MAP search stops where it starts on those campaigns, so the anchors' population
-        can sit 0.25 from the posterior.
+        0.3 cut the horizontal mean's posterior of ordinary two- and four-bolt campaigns, whose first
+        anchors' MAP search then stopped where it started (0.25 from the posterior; since mended,
+        `workbench.identify.bayes._map_search`).
         """
         box = self.support_mean_bounds
         centre = self.trust_centre if self.trust_centre is not None else np.array(
