@@ -52,6 +52,7 @@ def _tests(found, mass=None, joint_factor=(1.0, 1.0), count=7, tests=8, seed=0):
     return MeasuredModes(np.array(rows), source="scipy tests")
 
 
+@pytest.mark.slow
 def test_a_mass_on_a_node_is_named_there(bracket):
     model, found, _ = bracket
     node = int(model.sensors[0].node)  # the arm's tip, where the shaker's sensor block sits
@@ -84,6 +85,7 @@ def test_matrix_effects_refuse_what_a_matrix_model_cannot_hold(bracket):
         apply_matrix_effect(model, Effect("stinger_stiffness", f"node {model.sensors[3].node}", {"stiffness": 1e5}))
 
 
+@pytest.mark.slow
 def test_diagnose_runs_on_a_matrix_campaign(bracket, tmp_path):
     model, found, out = bracket
     campaign = tmp_path / "campaign"

@@ -116,6 +116,7 @@ def _common(seen: dict, folder: Path) -> None:
     assert len(seen["links"]) == len(seen["tables"])
 
 
+@pytest.mark.slow  # the report and diagnosis pages are built first: 20 s
 def test_report_page_in_a_browser(pages):
     seen = _open(pages["report"])
     _common(seen, pages["report"].parent)
@@ -128,6 +129,7 @@ def test_report_page_in_a_browser(pages):
     assert "1_mac" in seen["tables"]
 
 
+@pytest.mark.slow
 def test_diagnosis_page_in_a_browser(pages):
     seen = _open(pages["diagnosis"])
     _common(seen, pages["diagnosis"].parent)

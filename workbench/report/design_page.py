@@ -12,6 +12,7 @@ from workbench.plan.candidates import FAMILIES
 from workbench.report.page import CSS
 from workbench.report.pieces import html_figure
 from workbench.report.plots import design_width_figure
+from workbench.report.summary import SUMMARY_CSS
 from workbench.report.tables import Table
 from workbench.workflow.design import DesignPlan, Verification, design_files
 
@@ -69,14 +70,18 @@ def design_page(plan: DesignPlan, model_name: str, check: Verification | None = 
     laws = ", ".join(f"{g}: E {m / 1e9:.3g} GPa, CoV {100 * c:.3g} %"
                      for g, m, c in zip(plan.groups.groups, plan.mean_pa, plan.cov))
     verdict = ("reaches" if plan.reached else "is the most precise within the budget; no design reaches")
+    widths = "; ".join(f"{g}: mean {100 * best.width[i, 0]:.1f} %, CoV {100 * best.width[i, 1]:.0f} %"
+                       for i, g in enumerate(plan.groups.groups))
     levels = "".join(f"<li>{i}: {html.escape(n)}</li>" for i, n in enumerate(best.design.level_names, start=1))
     return f"""<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Design: {html.escape(model_name)}
-</title><style>{CSS}</style></head><body><main>
+</title><style>{CSS}{SUMMARY_CSS}</style></head><body><main>
 <h1>Campaign design for {html.escape(model_name)}</h1>
+<section class="summary" id="summary"><h2>Summary</h2>
 <p><b>Recommended: {html.escape(best.design.name)}, {best.design.tests} tests</b>; it {verdict} the target CoV
-width of {100 * plan.target:.0f} % for every group (budget {plan.budget} tests). Its levels (design.csv):</p>
+width of {100 * plan.target:.0f} % for every group (budget {plan.budget} tests). Predicted 95 % widths:
+{html.escape(widths)}. Its levels (design.csv, campaign.toml):</p>
 <ul>{levels}</ul>
-<p>Planned for the joint laws {html.escape(laws)}.</p>
+<p>Planned for the joint laws {html.escape(laws)}.</p></section>
 {figure}
 <h2>What the prediction assumes</h2>
 <ul><li>Estimator: the paper's moment matching (eq. 10-11), with the intervals <code>workbench identify --method
