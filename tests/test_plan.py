@@ -228,21 +228,3 @@ def test_a_matrix_model_is_planned_as_its_frame(tmp_path):
     assert np.allclose(wa, wb, rtol=1e-3)
     assert load_campaign(b).frame.joint_names == ("A", "B")
 
-
-@pytest.mark.slow
-def test_two_workers_give_the_serial_plan_and_check_to_the_bit(tmp_path):
-    """The predictions and the simulation check handed to a local Dask cluster (CONTRACTS.md section 3:
-    the same numbers whoever runs them)."""
-    frame = str(REPO / "frames" / "two_bolt.toml")
-    outs = {}
-    for workers in ("1", "2"):
-        out = tmp_path / f"w{workers}"
-        status, err = run_cli(["design", frame, "--out", str(out), "--budget", "12", "--target", "5",
-                               "--verify", "2", "--workers", workers])
-        assert status == 0, err
-        outs[workers] = out
-    for name in ("designs.csv", "design.csv"):
-        assert (outs["1"] / name).read_bytes() == (outs["2"] / name).read_bytes()
-    tables = [(o / "index.html").read_text().split("Simulation check")[1].split("Every candidate")[0]
-              for o in outs.values()]
-    assert tables[0] == tables[1] and "simulated width" in tables[0]
