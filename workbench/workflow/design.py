@@ -22,6 +22,8 @@ from workbench.identify.data import JointGroups, joint_groups
 from workbench.identify.moments import moment_matching
 from workbench.io.campaign import Campaign, Factor, campaign_toml
 from workbench.io.outputs import DESIGN_STAMP, csv_text
+from workbench.model.frame import Frame
+from workbench.model.matrix_model import MatrixModel
 from workbench.model.structure import Structure, structure_at_moduli, structure_modes
 from workbench.plan.candidates import Design, candidate_designs
 from workbench.plan.predict import DesignPrediction, Planner, PlanSettings, stratified_moduli
@@ -199,12 +201,15 @@ def verify_design(plan: DesignPlan, design: Design, campaigns: int = 12, seed: i
                         np.stack([plan.mean_pa, plan.cov], axis=1))
 
 
-def with_settings(plan_settings: PlanSettings, **changes: object) -> PlanSettings:
-    """``plan_settings`` with ``changes`` (the command line's options)."""
-    return replace(plan_settings, **{k: v for k, v in changes.items() if v is not None})  # type: ignore[arg-type]
+def with_settings(plan_settings: PlanSettings, count: int | None = None, frequency_scatter: float | None = None,
+                  seed: int | None = None) -> PlanSettings:
+    """``plan_settings`` with the command line's options that were given."""
+    s = plan_settings
+    return replace(s, count=s.count if count is None else count, seed=s.seed if seed is None else seed,
+                   frequency_scatter=s.frequency_scatter if frequency_scatter is None else frequency_scatter)
 
 
-def design_files(plan: DesignPlan, model_path: Path, out: Path, frame: object) -> dict[str, str]:
+def design_files(plan: DesignPlan, model_path: Path, out: Path, frame: Frame | MatrixModel) -> dict[str, str]:
     """``designs.csv``, and the recommended design as ``design.csv`` and ``campaign.toml`` (CONTRACTS.md 2-3)."""
     rows = []
     for p in plan.predictions:
@@ -221,7 +226,7 @@ def design_files(plan: DesignPlan, model_path: Path, out: Path, frame: object) -
     design = csv_text(["test_id", *(f.name for f in factors)],
                       ([f"{t + 1:0{max(2, width)}d}", *map(str, row)] for t, row in enumerate(best.levels)))
     frame_file = Path(os.path.relpath(model_path.resolve(), out.resolve())).as_posix()
-    campaign = Campaign(name=f"planned campaign: {best.name}", frame=frame, synthetic=False,  # type: ignore[arg-type]
+    campaign = Campaign(name=f"planned campaign: {best.name}", frame=frame, synthetic=False,
                         description=f"{best.tests} tests planned by workbench design (target CoV width "
                                     f"{plan.target:g}); no measurement yet",
                         source=f"{DESIGN_STAMP} planned for {model_path.name}", factors=factors, frame_file=frame_file)
