@@ -19,7 +19,7 @@ import numpy as np
 
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, joint_groups
-from workbench.identify.moments import moment_matching
+from workbench.identify.moments import Z95, moment_matching
 from workbench.io.campaign import Campaign, Factor, campaign_toml
 from workbench.io.outputs import DESIGN_STAMP, csv_text
 from workbench.model.frame import Frame
@@ -27,7 +27,7 @@ from workbench.model.matrix_model import MatrixModel
 from workbench.model.structure import Structure, structure_at_moduli, structure_modes
 from workbench.plan.candidates import Design, candidate_designs
 from workbench.plan.predict import DesignPrediction, Planner, PlanSettings, stratified_moduli
-from workbench.tasks import Mapper, serial
+from workbench.tasks import Mapper, serial_mapper
 
 DEFAULT_BUDGET = 60  # tests, when the user gives none (the full factorial of four bolts, 81, when larger)
 
@@ -41,19 +41,35 @@ class DesignPlan:
 
     recommended : the cheapest design whose predicted CoV width is at most ``target`` for every group;
         when none is, the one with the smallest largest CoV width (``reached`` False).
+    planner : the model, its groups, the laws planned for and the settings, shared by every prediction.
     """
 
-    model: Structure
-    groups: JointGroups
-    mean_pa: np.ndarray
-    cov: np.ndarray
-    settings: PlanSettings
     target: float
     budget: int
     predictions: tuple[DesignPrediction, ...]
     recommended: DesignPrediction
     reached: bool
     planner: Planner
+
+    @property
+    def model(self) -> Structure:
+        return self.planner.model
+
+    @property
+    def groups(self) -> JointGroups:
+        return self.planner.groups
+
+    @property
+    def mean_pa(self) -> np.ndarray:
+        return self.planner.mean_pa
+
+    @property
+    def cov(self) -> np.ndarray:
+        return self.planner.cov
+
+    @property
+    def settings(self) -> PlanSettings:
+        return self.planner.settings
 
 
 def cov_guesses(texts: list[str] | None) -> dict[str, float]:
@@ -91,10 +107,6 @@ def planned_laws(model: Structure, groups: JointGroups,
     return np.array(groups.nominal_pa, float), cov
 
 
-def _predict_one(planner: Planner, design: Design) -> DesignPrediction:
-    return planner.predict(design)
-
-
 def plan_design(model: Structure, budget: int | None = None, target: float = 0.5,
                 cov_guess: dict[str, float] | None = None, settings: PlanSettings | None = None,
                 mapper: Mapper | None = None) -> DesignPlan:
@@ -119,8 +131,8 @@ def plan_design(model: Structure, budget: int | None = None, target: float = 0.5
     mean_pa, cov = planned_laws(model, groups, cov_guess)
     planner = Planner(model, groups, mean_pa, cov, settings)
     designs = candidate_designs(n_joints, budget, low=max(n_parameters, 3), seed=settings.seed)
-    run = mapper or (lambda f, tasks, label, shared: serial(f, tasks, label, shared))
-    predictions = tuple(run(_predict_one, designs, "designs", planner))
+    run = mapper or serial_mapper()
+    predictions = tuple(run(Planner.predict, designs, "designs", planner))  # predict(planner, design)
     reaching = [p for p in predictions if np.all(p.width[:, 1] <= target)]
     if reaching:
         best = min(reaching, key=lambda p: (p.design.tests, float(p.width[:, 1].max())))
@@ -129,8 +141,7 @@ def plan_design(model: Structure, budget: int | None = None, target: float = 0.5
         warnings.warn(f"no design within {budget} tests reaches a CoV width of {target:g} for every group; "
                       f"recommending the most precise, {best.design.name} (widths "
                       f"{', '.join(f'{w:.2f}' for w in best.width[:, 1])})", stacklevel=2)
-    return DesignPlan(model, groups, mean_pa, cov, settings, target, budget, predictions, best, bool(reaching),
-                      planner)
+    return DesignPlan(target, budget, predictions, best, bool(reaching), planner)
 
 
 def plan_prediction(plan: DesignPlan, design: Design) -> DesignPrediction:
@@ -159,7 +170,7 @@ class Verification:
     @property
     def spread(self) -> np.ndarray:
         """2 x 1.96 x the sd of the log estimates (the relative 95 % spread)."""
-        return 2.0 * 1.959964 * np.log(self.estimate).std(axis=0, ddof=1)
+        return 2.0 * Z95 * np.log(self.estimate).std(axis=0, ddof=1)
 
     @property
     def bias(self) -> np.ndarray:
@@ -195,7 +206,7 @@ def verify_design(plan: DesignPlan, design: Design, campaigns: int = 12, seed: i
     seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(seed).spawn(campaigns)]
     shared = (plan.model, plan.groups, plan.mean_pa, plan.cov, design, plan.settings.count,
               plan.settings.frequency_scatter)
-    run = mapper or (lambda f, tasks, label, shared: serial(f, tasks, label, shared))
+    run = mapper or serial_mapper()
     results = run(_one_campaign, list(enumerate(seeds)), "verification campaigns", shared)
     return Verification(design, np.array([r[0] for r in results]), np.array([r[1] for r in results]),
                         np.stack([plan.mean_pa, plan.cov], axis=1))
