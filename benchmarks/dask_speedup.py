@@ -52,8 +52,8 @@ def main() -> None:
         return monte_carlo(model, joints, 10, args.samples, seed=3, mapper=mapper, chunk=50).frequency_hz
 
     def cases(mapper, cluster):
-        summary = validate(args.cases, 5, REPO / "frames" / "two_bolt.toml", mapper=mapper)
-        return [(r.seed, r.verdict, r.where, r.shrinkage) for r in summary["results"]]
+        summary = validate(args.cases, 5, mapper=mapper)
+        return [(r.case, r.verdict, r.where, r.shrinkage, r.confidence) for r in summary["results"]]
 
     print(f"{'job':36s} {'1 worker':>10s} {'2 workers':>10s} {'speedup':>8s}  identical")
     for name, job in ((f"Monte Carlo, four-bolt, {args.samples} samples", mc),

@@ -13,7 +13,7 @@ from conftest import REPO
 
 from workbench.cli import main
 from workbench.diagnose.observations import observations
-from workbench.diagnose.verdict import GAP_RATIO, diagnose, diagnosis_record
+from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.extraction.records import MeasuredModes
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
@@ -57,8 +57,9 @@ def test_correlated_scatter_is_not_read_as_a_gap():
         r = np.full(8, 100.0) / obs.frequency_hz[0] - 1  # the model is the truth
         full.append(float(r @ np.linalg.inv(obs.frequency_cov[0]) @ r) / 8)
         diagonal.append(float(np.sum((r / (obs.frequency_se[0] / obs.frequency_hz[0])) ** 2)) / 8)
-    assert np.mean(np.array(full) > GAP_RATIO) < 0.01
-    assert np.mean(np.array(diagonal) > GAP_RATIO) > 0.05
+    ratio = 4.0  # a chi-square per observation four times its expectation
+    assert np.mean(np.array(full) > ratio) < 0.01
+    assert np.mean(np.array(diagonal) > ratio) > 0.05
 
 
 def test_global_joint_shift_scales_every_joint():
@@ -113,7 +114,8 @@ def test_added_mass_on_a_member_is_found_between_mesh_nodes():
 def test_amplitude_softening_needs_two_amplitudes_and_is_told_from_a_shift():
     frame = _deterministic(ONE_BOLT)
     amplitude = np.array([1.0, 5.0] * 4)
-    data = _data(frame, Effect(), tests=8, amplitude=amplitude, gamma_of=lambda t: 1 - 0.03 * amplitude[t])
+    # the law is nil at the lowest level (the linear model holds there): gamma = 1 - c (a / a_min - 1)
+    data = _data(frame, Effect(), tests=8, amplitude=amplitude, gamma_of=lambda t: 1 - 0.03 * (amplitude[t] - 1))
     result = diagnose(frame, data)
     assert (result.verdict, result.where) == ("amplitude_softening", "A")
     assert result.ranking[0].parameters["slope"] == pytest.approx(0.03, rel=0.05)
@@ -164,9 +166,10 @@ def test_record_follows_the_contract():
     assert scores == sorted(scores, reverse=True) and all(0 <= s <= 1 for s in scores)
     for entry in record["ranking"]:
         assert set(entry) >= {"effect", "where", "parameters", "freq_rms_rel_error", "heldout_freq_rms_rel_error"}
-    held = [e["heldout_chi2"] for e in record["ranking"]]
+    held = [e["heldout_score"] for e in record["ranking"]]  # best first: the held-out predictive score
     assert held == sorted(held)
-    assert set(record["verdict"]) == {"effect", "where", "shrinkage"}
+    assert set(record["verdict"]) <= {"effect", "where", "shrinkage", "confidence", "also", "partial"}
+    assert 0.0 <= record["verdict"]["confidence"] <= 1.0
     json.dumps(record)  # JSON-ready
 
 
@@ -186,15 +189,21 @@ def test_diagnose_command_writes_json_and_html(tmp_path, capsys):
     record = json.loads((out / "diagnosis.json").read_text())
     # the verdict must follow from the record's own ranking and gates (it used to be checked against
     # every possible answer, a test that could not fail)
-    from workbench.diagnose.verdict import MIN_SHRINKAGE
+    from workbench.diagnose.combined import PAIR_POOL
+    from workbench.diagnose.decision import MIN_SHRINKAGE
 
     verdict, ranking = record["verdict"], record["ranking"]
     if verdict["effect"] == "none":
         assert verdict["where"] is None and verdict["shrinkage"] == 0.0
     elif verdict["effect"] == "unexplained":
         assert verdict["where"] is None and verdict["shrinkage"] == 0.0 and ranking
-    else:
-        assert (verdict["effect"], verdict["where"]) == (ranking[0]["effect"], ranking[0]["where"])
+    else:  # Table 3 has no damping: every candidate is on the frequency channel
+        named = [(verdict["effect"], verdict["where"])] + [(a["effect"], a["where"]) for a in verdict.get("also", [])]
+        tops = [(c["effect"], c["where"]) for c in ranking]
+        if len(named) == 1:
+            assert named[0] == tops[0]
+        else:  # a pair: both among the candidates pairs are formed from
+            assert all(n in tops[:PAIR_POOL] for n in named)
         assert verdict["shrinkage"] >= MIN_SHRINKAGE
         assert ranking[0]["heldout_freq_rms_rel_error"] < record["baseline"]["freq_rms_rel_error"]
     assert record["synthetic"] is False
@@ -231,66 +240,204 @@ def test_every_effect_of_the_registry_is_drawn_in_its_place():
 
 def test_validation_reports_progress_and_writes_its_files(monkeypatch, tmp_path):
     import workbench.workflow.diagnosis as workflow
-    from workbench.workflow.rig_cases import CaseResult
+    from workbench.report.validation_page import validation_html, validation_text
+    from workbench.workflow.proving_validation import ProvingResult
 
-    def fake_case(frame, kind, seed):
-        right = kind == "none"
-        return CaseResult(seed, kind, None, {"x": 1.0}, kind, "none", None, 0.0, right, None, 0.5, {})
+    def fake_case(_, spec):
+        category = "none" if spec.kind == "none" else "single"
+        return ProvingResult(spec.case, spec.seed, spec.frame, category, spec.kind, None, spec.level, None, None,
+                             None, "none", None, (), None, 0.9, 0.0, category == "none", False, None, 0.5, {})
 
-    monkeypatch.setattr(workflow, "run_case", fake_case)
+    monkeypatch.setattr(workflow, "run_proving_case", fake_case)
     calls = []
-    summary = workflow.validate(3, 2, TWO_BOLT, progress=lambda *a: calls.append(a))
+    summary = workflow.validate(3, 2, progress=lambda *a: calls.append(a))
     assert calls == [("validation cases", 1, 3), ("validation cases", 2, 3), ("validation cases", 3, 3)]
-    assert [r.seed for r in summary["results"]] == [200_006, 200_007, 200_008]
-    assert summary["none_right"] == "1/1" and summary["cases"] == 3
+    assert [r.case for r in summary["results"]] == [0, 1, 2]
+    assert summary["none_false_positive"]["n"] == 1 and summary["none_false_positive"]["hits"] == 0
+    assert summary["single_accuracy"] == {"hits": 0, "n": 2, "rate": 0.0, "ci95": [0.0, pytest.approx(0.6576, 1e-3)]}
     files = workflow.validation_files(summary)
-    assert "results" not in json.loads(files["summary.json"])
+    record = json.loads(files["validation.json"])
+    assert "results" not in record and len(record["case_results"]) == 3
     rows = list(csv.reader(io.StringIO(files["cases.csv"])))
-    assert len(rows) == 4 and rows[1][:3] == ["200006", "none", ""]
-    assert json.loads(rows[1][3]) == {"x": 1.0}
+    assert len(rows) == 4 and rows[0][-1] == "wall_time_s"
+    assert "Wilson" in validation_html(record) and "single effect" in validation_text(record)
 
 
-@pytest.mark.slow
-def test_blind_validation_meets_the_issue_targets():
-    from workbench.workflow.diagnosis import validate
+def test_wilson_interval_matches_its_closed_form():
+    from workbench.workflow.proving_validation import wilson
 
-    summary = validate(40, 1, TWO_BOLT)
-    assert summary["top1_accuracy"] >= 0.85
-    assert summary["place_accuracy"] >= 0.80
-    assert summary["shrinkage_right_verdicts"]["median"] >= 0.60
-    assert summary["none_right"].split("/")[0] == summary["none_right"].split("/")[1]
-    assert summary["outside_right"].split("/")[0] == summary["outside_right"].split("/")[1]
+    hits, n, z = 37, 50, 1.959963984540054
+    p = hits / n
+    centre, half = (p + z * z / (2 * n)) / (1 + z * z / n), z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (
+        1 + z * z / n)
+    assert wilson(hits, n)["ci95"] == pytest.approx([centre - half, centre + half], rel=1e-9)
+    assert wilson(0, 0)["rate"] is None
 
 
 def test_a_damping_gap_alone_never_names_a_frequency_effect():
     # issue 14: frequencies within scatter, damping well off; the best-ranked candidate is a
     # frequency effect that fits the noise. It may not be named: only a damping candidate, or unexplained.
+    from workbench.diagnose.decision import decide
     from workbench.diagnose.fitting import CandidateFit
-    from workbench.diagnose.observations import Observations
-    from workbench.diagnose.verdict import _verdict
+    from workbench.diagnose.observations import Discrepancy, Observations
 
-    modes = 4
+    modes = 6
     f = np.full((1, modes), 100.0)
     obs = Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-8, (1, 1, 1)),
-                       np.full((1, modes), 0.02), np.full((1, modes), 1e-4))
+                       np.full((1, modes), 0.02), np.full((1, modes), 1e-4), Discrepancy(0.0, 0.0, 0.0))
 
-    def fit(effect, channel, chi2, heldout_f, heldout_d, rms_f, rms_d):
-        return CandidateFit(effect, "A", {}, channel, chi2, heldout_f + heldout_d, heldout_f, heldout_d,
-                            rms_f, rms_f, rms_d, rms_d, 1, chi2)
+    def fit(effect, channel, chi2_f, chi2_d, heldout_f, heldout_d, rms_f, rms_d):
+        return CandidateFit(effect, "A", {}, channel, chi2_f + chi2_d, chi2_f, heldout_f + heldout_d, heldout_f,
+                            heldout_d, rms_f, rms_f, rms_d, rms_d, 1, chi2_f + chi2_d)
 
-    baseline = fit("baseline", "frequency", 400.0 * modes, 1.0, 400.0 * modes, 1e-4, 0.01)
-    shift = fit("joint_stiffness_shift", "frequency", 1.0, 0.5, 400.0 * modes, 5e-5, 0.01)
-    damping = fit("joint_damping", "damping", 3.0, 1.0, 3.0, 1e-4, 1e-4)
-    verdict, where, _, _, _, _ = _verdict(obs, f.copy(), baseline, [shift, damping],
-                                          {("joint_stiffness_shift", "A"): f, ("joint_damping", "A"): f})
-    assert (verdict, where) == ("joint_damping", "A")
-    verdict, _, _, _, _, partial = _verdict(obs, f.copy(), baseline, [shift], {("joint_stiffness_shift", "A"): f})
-    assert verdict == "unexplained" and partial is None  # nothing on the channel with the gap
+    baseline = fit("baseline", "frequency", 0.0, 400.0 * modes, 0.0, 400.0 * modes, 1e-4, 0.01)
+    shift = fit("joint_stiffness_shift", "frequency", 0.0, 400.0 * modes, 0.0, 400.0 * modes, 5e-5, 0.01)
+    damping = fit("joint_damping", "damping", 0.0, 3.0, 0.0, 3.0, 1e-4, 1e-4)
+    verdict = decide(obs, f.copy(), baseline, [shift, damping],
+                     {("joint_stiffness_shift", "A"): f, ("joint_damping", "A"): f})
+    assert (verdict.effect, verdict.where) == ("joint_damping", "A") and verdict.gaps["frequency"]["gap"] is False
+    verdict = decide(obs, f.copy(), baseline, [shift], {("joint_stiffness_shift", "A"): f})
+    assert verdict.effect == "unexplained" and verdict.partial is None  # nothing on the channel with the gap
     # a frequency gap the best candidate only narrows (held-out error 20 % smaller, under the 30 % to
     # be named): unexplained, with it as the partial explanation
     off = f * 1.001
-    weak = fit("joint_stiffness_shift", "frequency", 500.0, 450.0, 0.0, 8e-4, 0.01)
-    base_f = fit("baseline", "frequency", 800.0, 800.0, 0.0, 1e-3, 0.01)
-    verdict, _, _, _, _, partial = _verdict(obs, off, base_f, [weak], {("joint_stiffness_shift", "A"): off})
-    assert verdict == "unexplained"
-    assert partial == {"effect": "joint_stiffness_shift", "where": "A", "shrinkage": pytest.approx(0.2)}
+    weak = fit("joint_stiffness_shift", "frequency", 500.0, 0.0, 450.0, 0.0, 8e-4, 0.01)
+    base_f = fit("baseline", "frequency", 800.0, 0.0, 800.0, 0.0, 1e-3, 0.01)
+    verdict = decide(obs, off, base_f, [weak], {("joint_stiffness_shift", "A"): off})
+    assert verdict.effect == "unexplained"
+    assert verdict.partial == {"effect": "joint_stiffness_shift", "where": "A", "shrinkage": pytest.approx(0.2)}
+
+
+def test_two_effects_that_predict_alike_are_not_told_apart():
+    # confidence is the pseudo-BMA weight of the named effect type: two different effects with the same
+    # held-out chi-square share it, so neither is named (the gap is real and both explain it)
+    from workbench.diagnose.decision import NAME_CONFIDENCE, decide, type_confidence
+    from workbench.diagnose.fitting import CandidateFit
+    from workbench.diagnose.observations import Discrepancy, Observations
+
+    modes = 6
+    f = np.full((1, modes), 100.0)
+    obs = Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-6, (1, 1, 1)),
+                       None, None, Discrepancy(0.0, 0.0, 0.0))
+
+    def fit(effect, where, held, rms):
+        return CandidateFit(effect, where, {}, "frequency", held, held, held, held, 0.0, rms, rms, None, None, 1, held)
+
+    off = f * 1.01
+    base = fit("baseline", None, 600.0, 0.01)
+    a, b = fit("added_mass", "beam", 4.0, 1e-4), fit("support_compliance", "base_left", 4.0, 1e-4)
+    assert type_confidence([a, b], base, "added_mass") == pytest.approx(0.5)
+    verdict = decide(obs, off, base, [a, b], {("added_mass", "beam"): f, ("support_compliance", "base_left"): f})
+    assert verdict.confidence == pytest.approx(NAME_CONFIDENCE) and verdict.effect == "unexplained"
+    assert verdict.partial is not None and verdict.partial["effect"] == "added_mass"
+    # one of them clearly better: named, confident
+    c = fit("support_compliance", "base_left", 14.0, 2e-4)
+    verdict = decide(obs, off, base, [a, c], {("added_mass", "beam"): f, ("support_compliance", "base_left"): f})
+    assert verdict.effect == "added_mass" and verdict.confidence == pytest.approx(1 / (1 + np.exp(-5.0)))
+
+
+def test_a_mode_the_campaign_missed_does_not_shift_the_pairing():
+    # the sensors missed the model's fourth mode: the measured modes above it pair with their own model
+    # modes (the model is solved over the whole band), not one mode down
+    from workbench.diagnose.baseline import baseline
+
+    frame = _deterministic(ONE_BOLT)
+    data = _data(frame, Effect(), count=9)
+    kept = [0, 1, 2, 4, 5, 6, 7, 8]
+    missed = MeasuredModes(data.frequency_hz[:, kept])
+    base = baseline(frame, observations(missed))
+    assert list(base.pairing) == kept and not base.unpaired.any()
+    # a measured mode with no model mode within 20 %: left out, not paired far away
+    odd = MeasuredModes(np.column_stack([0.7 * data.frequency_hz[:, :1], data.frequency_hz[:, :3]]))
+    base = baseline(frame, observations(odd))
+    assert list(base.unpaired) == [True, False, False, False] and list(base.pairing[1:]) == [0, 1, 2]
+
+
+def test_the_mass_screen_follows_exact_solves():
+    # Rayleigh-Ritz on the nominal modes (the screen that places a mass) against exact solves of the frame
+    # with the mass, up to 2 % of the frame's mass: each mode's shift within 5 % of the exact shift
+    from workbench.diagnose.baseline import baseline
+    from workbench.diagnose.candidates import _ritz_basis, _ritz_mass_curve
+    from workbench.diagnose.curves import sweep
+    from workbench.rig.effects import ADDED_MASS
+
+    frame = _deterministic(ONE_BOLT)
+    base = baseline(frame, observations(_data(frame, Effect(), count=8)))
+    total = float(base.model.mass.diagonal()[0::3].sum())
+    masses = total * np.array([1e-4, 3e-3, 1e-2, 2e-2])
+    for where, fixed in (("right_column", {"position": 0.437}), ("beam", {"position": 0.8})):
+        screen = _ritz_mass_curve(base, where, fixed, masses, _ritz_basis(base))
+        exact = sweep(base, ADDED_MASS, where, masses, 0, True, fixed)
+        nominal = base.modes.frequency_hz
+        shift_exact, shift_screen = exact.frequency_hz - nominal, screen.frequency_hz - nominal
+        big = np.abs(shift_exact) > 1e-4 * nominal
+        assert np.all(np.abs(shift_screen - shift_exact)[big] <= 0.05 * np.abs(shift_exact)[big])
+
+
+def test_linear_effects_sweep_from_two_assemblies_as_from_one_per_value():
+    # a joint's modulus, a support spring, an axial force: K is linear in the parameter, so the grid is
+    # interpolated between two assemblies; its frequencies equal those of a frame assembled at each value
+    from workbench.diagnose.baseline import baseline
+    from workbench.diagnose.curves import sweep
+    from workbench.model.structure import structure_modes
+    from workbench.rig.effects import AXIAL_PRESTRESS, JOINT_STIFFNESS_SHIFT, SUPPORT_COMPLIANCE
+
+    frame = _deterministic(ONE_BOLT)
+    base = baseline(frame, observations(_data(frame, Effect(), count=6)))
+    cases = [(JOINT_STIFFNESS_SHIFT, "A", np.logspace(-1, 1, 9), 4, {}),
+             (SUPPORT_COMPLIANCE, "base_left", np.logspace(2, 6, 9), 8, {}),
+             (AXIAL_PRESTRESS, "beam", np.linspace(-300.0, 600.0, 10), 3, {})]
+    for kind, where, values, start, fixed in cases:
+        curve = sweep(base, kind, where, values, start, kind is not AXIAL_PRESTRESS, fixed)
+        for i in (0, values.size - 1):
+            model = assemble(apply_effect(frame, Effect(kind.name, where, {kind.parameter: float(values[i])})))
+            direct = np.sort(structure_modes(model, base.count).frequency_hz)
+            assert np.sort(curve.frequency_hz[i]) == pytest.approx(direct, rel=1e-7), kind.name
+
+
+def test_softening_is_nil_at_the_lowest_level_and_grows_with_it():
+    # issue 14: amplitude softening is a law in the excitation level, nil at the lowest (the linear model
+    # holds there), not a shift of every level
+    from workbench.diagnose.baseline import baseline
+    from workbench.diagnose.candidates import joint_curves
+    from workbench.diagnose.fitting import Frequencies
+
+    frame = _deterministic(ONE_BOLT)
+    amplitude = np.array([2.0, 6.0, 10.0] * 2)
+    obs = observations(_data(frame, Effect(), tests=6, amplitude=amplitude))
+    base = baseline(frame, obs)
+    curve = joint_curves(base)[0]
+    nominal = base.frequency(base.modes.frequency_hz)
+    model = Frequencies(base, obs, curve, amplitude_joint=True)
+    predicted = model.predict(0.05)  # gamma = 1 - 0.05 (a / 2 - 1): 1, 0.9, 0.8
+    assert predicted[0] == pytest.approx(nominal, rel=1e-6)
+    assert np.all(predicted[1] < predicted[0]) and np.all(predicted[2] < predicted[1])
+    half = Frequencies(base, obs, curve).predict(float(np.log(0.8)))[0]  # the joint at 0.8 of its modulus
+    assert predicted[2] == pytest.approx(half, rel=1e-9)
+
+
+def test_model_discrepancy_is_not_a_gap_and_an_effect_beyond_it_is():
+    # residuals drawn from the discrepancy itself (a common shift of every mode, a per-mode error shared by the
+    # two excitation levels, the measurement error): their chi-square follows its law (mean n, 1 % beyond the
+    # 99 % quantile); one mode 1.5 % off, five times the per-mode error, is a gap
+    from scipy.stats import chi2 as chi2_law
+
+    from workbench.diagnose.observations import Discrepancy, Observations, frequency_chi2
+
+    rng = np.random.default_rng(7)
+    n_cond, n_modes, se = 2, 8, 5e-4
+    d = Discrepancy(0.002, 0.004, 0.2)
+    f = np.tile(np.linspace(50.0, 900.0, n_modes), (n_cond, 1))
+    obs = Observations(np.array([1.0, 5.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (n_cond, 1, 1)),
+                       None, None, d)
+    values = []
+    for _ in range(4000):
+        rel = (d.common_sd * rng.standard_normal() + d.mode_sd * rng.standard_normal(n_modes)[None, :]
+               + se * rng.standard_normal((n_cond, n_modes)))
+        values.append(frequency_chi2(obs, f * (1 + rel)))
+    n = n_cond * n_modes
+    assert np.mean(values) == pytest.approx(n, rel=0.05)
+    assert np.mean(np.array(values) > chi2_law.ppf(0.99, n)) == pytest.approx(0.01, abs=0.006)
+    one_off = np.ones((n_cond, n_modes))
+    one_off[:, 3] = 1.015
+    assert frequency_chi2(obs, f * one_off) > chi2_law.ppf(0.99, n)

@@ -22,7 +22,8 @@ ALLOWED = {
     "rig": {"model", "io", "plan"},
     "diagnose": {"model", "uq", "extraction", "rig"},
     "io": {"model"},
-    "workflow": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "plan"},
+    "proving": {"model", "io"},  # its own physics: nothing of what it judges (tests/test_proving.py, finer)
+    "workflow": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "plan", "proving"},
     "report": {"model", "uq", "extraction", "identify", "rig", "diagnose", "io", "workflow", "plan"},
 }
 

@@ -6,6 +6,7 @@ Exit status 0 on success, 2 on bad input with a one-line reason on standard erro
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 import warnings
@@ -285,15 +286,16 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
 
 
 def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
-    from workbench.report.diagnosis_page import validation_text
+    from workbench.report.validation_page import validation_html, validation_text
     from workbench.workflow.diagnosis import validate, validation_files
     from workbench.workflow.execution import mapper
 
     with mapper(args.workers, args.scheduler, _progress()) as run:
-        summary = validate(args.cases, args.seed, args.frame, mapper=run)
-    out.commit(validation_files(summary))
-    print(validation_text(summary))
-    return f"{summary['cases']} blind cases; written to {args.out}"
+        files = validation_files(validate(args.cases, args.seed, mapper=run))
+    record = json.loads(files["validation.json"])
+    out.commit({**files, "index.html": validation_html(record)})
+    print(validation_text(record))
+    return f"{record['cases']} blind proving-ground cases; written to {args.out}"
 
 
 def _design(args: argparse.Namespace, out: OutputSet) -> str:
@@ -400,14 +402,13 @@ def _parser() -> argparse.ArgumentParser:
     _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",
                             _design, ("designs.csv", "design.csv", "campaign.toml", "index.html")))
 
-    p = sub.add_parser("validate-diagnosis", help="blind validation of the diagnosis on virtual-rig cases")
-    p.add_argument("--cases", type=_positive_int, default=40, help="number of cases (default 40)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the hidden effects and the rig (default 0)")
-    p.add_argument("--frame", default="frames/two_bolt.toml", help="nominal frame (default frames/two_bolt.toml)")
+    p = sub.add_parser("validate-diagnosis", help="blind validation of the diagnosis on proving-ground cases")
+    p.add_argument("--cases", type=_positive_int, default=200, help="number of cases (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the case mix (default 0)")
     _work_options(p)
-    p.add_argument("--out", required=True, help="output directory: summary.json and cases.csv")
+    p.add_argument("--out", required=True, help="output directory: validation.json, cases.csv, index.html")
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
-    p.set_defaults(run=_validate_diagnosis, writes=("summary.json", "cases.csv"))
+    p.set_defaults(run=_validate_diagnosis, writes=("validation.json", "cases.csv", "index.html"))
     return parser
 
 

@@ -22,9 +22,11 @@ from workbench.model.structure import Structure, structure_modes, structure_of
 from workbench.uq.smr import adaptive
 from workbench.uq.stochastic import joint_model
 
-__all__ = ["EXTRA_MODES", "Baseline", "baseline"]
+__all__ = ["EXTRA_MODES", "BAND_MARGIN", "PAIR_WINDOW", "Baseline", "baseline"]
 
 EXTRA_MODES = 3  # model modes beyond the measured count, for the pairing
+BAND_MARGIN = 1.3  # model modes up to this times the highest measured frequency
+PAIR_WINDOW = 0.2  # a measured mode more than 20 % from its model mode is not paired
 
 
 @dataclass(frozen=True)
@@ -35,9 +37,10 @@ class Baseline:
     ----------
     frame, model : the nominal frame (or matrix model) and its assembled model (the matrix model itself).
     modes : its first ``count`` modes.
-    pairing : (n_measured,) index of the model mode paired with each measured mode.
+    pairing : (n_measured,) index of the model mode paired with each measured mode (any, where unpaired).
     mean_ratio : (count,) E[f] / f(E[Y]) per model mode (1 with deterministic joints).
-    count : model modes solved (measured modes + `EXTRA_MODES`, at most the model's size - 2).
+    count : model modes solved (up to `BAND_MARGIN` times the highest measured frequency, at most the model's
+        size - 2).
     """
 
     frame: Frame | MatrixModel
@@ -46,6 +49,7 @@ class Baseline:
     pairing: np.ndarray
     mean_ratio: np.ndarray
     count: int
+    unpaired: np.ndarray | None = None  # (n_measured,) True where no model mode lies within PAIR_WINDOW
 
     @property
     def planar(self) -> tuple[Frame, Model]:
@@ -60,18 +64,35 @@ class Baseline:
 
 
 def baseline(frame: Frame | MatrixModel, obs: Observations) -> Baseline:
-    """The baseline of ``frame`` against the observations (module docstring)."""
+    """The baseline of ``frame`` against the observations (module docstring).
+
+    The model's modes reach `BAND_MARGIN` times the highest measured frequency: a campaign often misses modes
+    its sensors do not see (two modes 3 % apart, one of them at a node), and a pairing offered only as many
+    model modes as were measured then pairs the last measured modes with model modes far below them. A
+    measured mode with no model mode within `PAIR_WINDOW` is left unpaired (`Baseline.unpaired`).
+    """
     model = structure_of(frame)
     n_meas = obs.frequency_hz.shape[1]
-    count = min(n_meas + EXTRA_MODES, model.size - 2)
+    measured = np.nanmean(obs.frequency_hz, axis=0)
+    limit = model.size - 2
+    count = min(n_meas + EXTRA_MODES, limit)
     modes = structure_modes(model, count)
+    ceiling = min(limit, 3 * n_meas + EXTRA_MODES)  # a band is not worth more model modes than this
+    while modes.frequency_hz[-1] < BAND_MARGIN * np.nanmax(measured) and count < ceiling:
+        count = min(count + max(n_meas // 2, 4), ceiling)
+        modes = structure_modes(model, count)
     ratio = np.ones(count)
     if any(j.cov > 0 for j in frame.joints):
         moments = adaptive(model, joint_model(model), count)
         ratio = moments.mean_hz / moments.nominal_hz
-    measured = np.nanmean(obs.frequency_hz, axis=0)
-    cost = np.abs(np.log(measured[:, None] / (modes.frequency_hz * ratio)[None, :]))
-    rows, cols = linear_sum_assignment(np.nan_to_num(cost, nan=1e3))
-    pairing = np.empty(n_meas, int)
-    pairing[rows] = cols
-    return Baseline(frame, model, modes, pairing, ratio, count)
+    cost = np.nan_to_num(np.abs(np.log(measured[:, None] / (modes.frequency_hz * ratio)[None, :])), nan=1e3)
+    # each measured mode may also stay unpaired, at the window's cost: one odd mode then does not push the
+    # others one model mode along
+    window = np.log(1.0 + PAIR_WINDOW)
+    rows, cols = linear_sum_assignment(np.hstack([cost, np.where(np.eye(n_meas, dtype=bool), window, 1e6)]))
+    pairing = np.zeros(n_meas, int)
+    unpaired = np.ones(n_meas, bool)
+    paired = cols < count
+    pairing[rows[paired]] = cols[paired]
+    unpaired[rows[paired]] = False
+    return Baseline(frame, model, modes, pairing, ratio, count, unpaired)

@@ -19,7 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+import scipy.linalg
+from scipy.optimize import linear_sum_assignment, minimize_scalar
 from scipy.sparse.linalg import splu
 
 from workbench.diagnose.baseline import Baseline
@@ -29,6 +30,7 @@ from workbench.diagnose.localise import explained
 from workbench.diagnose.observations import Observations
 from workbench.model.assembly import Mesh
 from workbench.model.frame import Frame, member_length
+from workbench.model.structure import structure_modes
 from workbench.rig.effects import (
     ADDED_MASS,
     AXIAL_PRESTRESS,
@@ -41,6 +43,7 @@ from workbench.rig.effects import (
 __all__ = ["GRID_POINTS", "frame_curves", "joint_curves", "members_at"]
 
 GRID_POINTS = 33
+RITZ_EXTRA = 20  # Ritz basis of the mass screen: this many modes beyond the measured ones
 
 
 def _bending(frame: Frame, member_index: int) -> float:
@@ -123,8 +126,8 @@ def frame_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
     return [c for c in curves if c is not None]
 
 
-def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray,
-               reach_m: float) -> tuple[tuple[str, dict] | None, float]:
+def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray, reach_m: float,
+               basis: tuple[np.ndarray, np.ndarray]) -> tuple[tuple[str, dict] | None, float]:
     """The place within ``reach_m`` of ``node`` whose coarse mass curve fits best, and its cost."""
     frame, model = base.planar
     mesh = model.mesh
@@ -132,7 +135,7 @@ def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray,
             and (place := _place(frame, mesh, n)) is not None]
     best, best_cost = None, np.inf
     for where, fixed in near:
-        cost = _mass_cost(base, obs, where, fixed, coarse)
+        cost = _mass_cost(base, obs, where, fixed, coarse, basis)
         if cost < best_cost:
             best, best_cost = (where, fixed), cost
     return best, best_cost
@@ -153,6 +156,7 @@ def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
     scores = np.array([explained(-0.5 * translation[node], residual, weight) for node in range(len(mesh.node_xy))])
     total_mass = float(model.mass.diagonal()[0::3].sum())
     coarse = total_mass * np.logspace(-3.5, 0, 13)
+    basis = _ritz_basis(base)
     chosen: list[int] = []
     curves: list[Curve | None] = []
     for node in np.argsort(scores)[::-1]:
@@ -162,12 +166,12 @@ def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
                 np.hypot(*(mesh.node_xy[node] - mesh.node_xy[c])) < 0.05 for c in chosen):
             continue
         chosen.append(int(node))
-        best, best_cost = _best_near(base, obs, node, coarse, reach_m)
+        best, best_cost = _best_near(base, obs, node, coarse, reach_m, basis)
         if best is not None and "position" in best[1]:
-            best = _refine_position(base, obs, best[0], best[1]["position"], coarse, frame)[0]
+            best = _refine_position(base, obs, best[0], best[1]["position"], coarse, frame, basis)[0]
         elif best is not None:  # a named point: the mass may sit a few mm off it, along a member through it
             for member, position in _positions_of_point(frame, best[0]):
-                refined, cost = _refine_position(base, obs, member, position, coarse, frame)
+                refined, cost = _refine_position(base, obs, member, position, coarse, frame, basis)
                 if cost < best_cost:
                     best, best_cost = refined, cost
         if best is not None:
@@ -176,18 +180,75 @@ def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
     return curves
 
 
-def _mass_cost(base: Baseline, obs: Observations, where: str, fixed: dict, masses: np.ndarray) -> float:
-    """Frequency chi-square of the best mass (over the grid ``masses``, kg) at a place."""
-    curve = sweep(base, ADDED_MASS, where, masses, 0, True, fixed)
+def _mass_cost(base: Baseline, obs: Observations, where: str, fixed: dict, masses: np.ndarray,
+               basis: tuple[np.ndarray, np.ndarray]) -> float:
+    """Frequency chi-square of the best mass (over the grid ``masses``, kg) at a place, on the Ritz screen."""
+    curve = _ritz_mass_curve(base, where, fixed, masses, basis)
     return np.inf if curve is None else fit_curve(base, obs, curve, np.ones(obs.frequency_hz.shape[1], bool))[2]
 
 
+def _ritz_basis(base: Baseline) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (n_basis,) and all-dof shapes (3 n_nodes, n_basis) of the nominal model's first modes: the
+    Ritz basis of the mass screen (the measured count, plus `RITZ_EXTRA`).
+    """
+    frame, model = base.planar
+    modes = structure_modes(model, min(base.count + RITZ_EXTRA, model.size - 2))
+    return modes.eigenvalues, model.expand(modes.shapes)
+
+
+def _translations_at(base: Baseline, where: str, fixed: dict, shapes: np.ndarray) -> np.ndarray | None:
+    """(2, n_basis) the basis's x and y translations at a mass's place: a named point's node, or along a member
+    linearly between the nodes of the element that holds the position.
+    """
+    frame, model = base.planar
+    mesh = model.mesh
+    if where in frame.points:
+        node = mesh.point_node[where]
+        return shapes[[3 * node, 3 * node + 1]]
+    member = next((i for i, m in enumerate(frame.members) if m.name == where), None)
+    if member is None:
+        return None
+    m = frame.members[member]
+    x0, x1 = np.asarray(frame.points[m.start]), np.asarray(frame.points[m.end])
+    xy = x0 + float(fixed.get("position", 0.5)) * (x1 - x0)
+    for a, b in mesh.connectivity[mesh.element_member == member]:
+        pa, pb = mesh.node_xy[a], mesh.node_xy[b]
+        t = float(np.dot(xy - pa, pb - pa) / np.dot(pb - pa, pb - pa))
+        if -1e-9 <= t <= 1 + 1e-9:
+            return ((1 - t) * shapes[[3 * a, 3 * a + 1]] + t * shapes[[3 * b, 3 * b + 1]])
+    return None
+
+
+def _ritz_mass_curve(base: Baseline, where: str, fixed: dict, masses: np.ndarray,
+                     basis: tuple[np.ndarray, np.ndarray]) -> Curve | None:
+    """Frequencies of the frame with a point mass on the grid ``masses`` (kg), by Rayleigh-Ritz on the nominal
+    modes: ``K_r = diag(lambda)``, ``M_r = I + m U^T U`` with ``U`` the basis's translations at the place.
+
+    A screen only: it ranks places and positions (tens of them, each on a grid of masses) at a dense
+    eigen-solve of the basis's size instead of a solve of the frame; the place it picks gets exact solves
+    (`sweep`). Upper bounds of the exact frequencies, within a small fraction of the shift for the masses the
+    screen has to tell apart.
+    """
+    eigenvalues, shapes = basis
+    u = _translations_at(base, where, fixed, shapes)
+    if u is None:
+        return None
+    n = base.count
+    out = np.empty((masses.size, n))
+    gram = u.T @ u
+    for i, mass in enumerate(masses):
+        lam, vec = scipy.linalg.eigh(np.diag(eigenvalues), np.eye(eigenvalues.size) + mass * gram)
+        rows, cols = linear_sum_assignment(-(vec[:n] ** 2))  # each nominal mode to the Ritz mode it dominates
+        out[i, rows] = np.sqrt(np.maximum(lam[cols], 0.0)) / (2 * np.pi)
+    return Curve(ADDED_MASS.name, where, ADDED_MASS.parameter or "mass", masses, out, True, dict(fixed))
+
+
 def _refine_position(base: Baseline, obs: Observations, member: str, position: float, masses: np.ndarray,
-                     frame: Frame) -> tuple[tuple[str, dict], float]:
+                     frame: Frame, basis: tuple[np.ndarray, np.ndarray]) -> tuple[tuple[str, dict], float]:
     """Position of a mass between mesh nodes: a bounded scalar search within one element each side."""
     step = frame.element_length / member_length(frame, frame.member(member))
     lo, hi = max(position - step, 0.005), min(position + step, 0.995)
-    res = minimize_scalar(lambda x: _mass_cost(base, obs, member, {"position": float(x)}, masses),
+    res = minimize_scalar(lambda x: _mass_cost(base, obs, member, {"position": float(x)}, masses, basis),
                           bounds=(lo, hi), method="bounded", options={"xatol": 1e-4, "maxiter": 12})
     return (member, {"position": round(float(res.x), 4)}), float(res.fun)
 

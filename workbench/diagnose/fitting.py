@@ -27,7 +27,15 @@ from scipy.optimize import minimize_scalar
 
 from workbench.diagnose.baseline import Baseline
 from workbench.diagnose.curves import Curve
-from workbench.diagnose.observations import Observations, chi2, frequency_chi2, rms
+from workbench.diagnose.observations import (
+    Observations,
+    damping_chi2,
+    damping_variance,
+    frequency_chi2,
+    frequency_chi2_many,
+    frequency_score,
+    rms,
+)
 from workbench.rig.effects import JOINT_DAMPING
 
 __all__ = ["CandidateFit", "Frequencies", "fit_curve", "damping_fit", "evaluate"]
@@ -44,6 +52,7 @@ class CandidateFit:
     parameters: dict
     channel: str  # "frequency" or "damping": the data it changes
     chi2: float  # in-sample, frequency + damping
+    chi2_frequency: float  # in-sample, frequency
     heldout_chi2: float
     heldout_chi2_frequency: float
     heldout_chi2_damping: float
@@ -53,32 +62,53 @@ class CandidateFit:
     heldout_damping_rms_error: float | None
     parameter_count: int
     bic: float
+    heldout_logdet: float = 0.0  # log det of the covariance widened by the form's error, over the plain one
+    observations: int = 1  # means fitted (frequency and damping), for the parameters' charge
+
+    @property
+    def heldout_score(self) -> float:
+        """Minus twice the held-out log predictive density, up to a constant (chi-square plus log det), plus
+        ``ln N`` for each parameter beyond the one every candidate has: chosen on every mode, the refit of
+        leave-one-mode-out does not charge them.
+        """
+        return self.heldout_chi2 + self.heldout_logdet + self.extra_charge
+
+    @property
+    def extra_charge(self) -> float:
+        """``ln N`` per parameter beyond the first (`heldout_score`)."""
+        return max(self.parameter_count - 1, 0) * math.log(max(self.observations, 2))
 
 
 class Frequencies:
     """Predicted condition means as a function of one parameter, fitted by a scan and Brent.
 
     ``u`` is the curve's coordinate (`Curve.coordinate`), or with ``amplitude_joint`` the slope
-    ``c`` of a joint's relative modulus ``gamma(a) = 1 - c a`` on a joint stiffness curve.
+    ``c`` of a joint's relative modulus ``gamma(a) = 1 - c (a / a_min - 1)`` on a joint stiffness curve:
+    a law in the excitation level, nil at the lowest level.
     """
 
     def __init__(self, base: Baseline, obs: Observations, curve: Curve, amplitude_joint: bool = False):
         self.base, self.obs, self.curve, self.amplitude = base, obs, curve, amplitude_joint
         self.spline = curve.interpolant()
-        if amplitude_joint:  # gamma(a) = 1 - c a, c up to 0.9 of what would zero the modulus
+        # softening is nil at the lowest level, where the model is the linear one: gamma = 1 - c (a / a_min - 1)
+        self.excess = obs.amplitude / obs.amplitude.min() - 1.0
+        if amplitude_joint:  # c up to where the curve's lowest modulus (or 0.1) is reached
             lowest = float(curve.values.min())
-            c_max = (1.0 - max(lowest, 0.1)) / float(obs.amplitude.max())
-            self.lo, self.hi = 0.0, c_max
+            self.lo, self.hi = 0.0, (1.0 - max(lowest, 0.1)) / max(float(self.excess.max()), 1e-12)
         else:
             u = curve.coordinate(curve.values)
             self.lo, self.hi = float(u.min()), float(u.max())
 
     def predict(self, u: float) -> np.ndarray:
         """(n_cond, n_measured) predicted means, Hz, at ``u``."""
+        return self.predict_many(np.array([u]))[0]
+
+    def predict_many(self, u: np.ndarray) -> np.ndarray:
+        """(n_u, n_cond, n_measured) predicted means, Hz, at each of ``u`` (n_u,)."""
         if self.amplitude:
-            model_hz = self.spline(np.log(1.0 - u * self.obs.amplitude))  # (n_cond, n_model)
+            model_hz = self.spline(np.log(1.0 - u[:, None] * self.excess[None, :]))  # (n_u, n_cond, n_model)
         else:
-            model_hz = np.broadcast_to(self.spline(u), (self.obs.amplitude.size, self.base.count))
+            model_hz = np.broadcast_to(self.spline(u)[:, None, :], (u.size, self.obs.amplitude.size, self.base.count))
         return self.base.frequency(np.asarray(model_hz))
 
     def fit(self, modes_mask: np.ndarray) -> tuple[float, np.ndarray]:
@@ -98,7 +128,7 @@ class Frequencies:
             return frequency_chi2(self.obs, p, modes_mask, cache)
 
         grid = np.linspace(self.lo, self.hi, SCAN_POINTS)
-        costs = np.array([cost(u) for u in grid])
+        costs = frequency_chi2_many(self.obs, self.predict_many(grid), modes_mask, cache)
         i = int(np.argmin(costs))
         a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
         if b > a:
@@ -116,7 +146,11 @@ def fit_curve(base: Baseline, obs: Observations, curve: Curve,
 
 
 def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndarray) -> tuple[np.ndarray, dict]:
-    """Least squares of ``zeta = c0 (+ eta * share)``, eta >= 0, on the modes in ``modes_mask``.
+    """Least squares of ``zeta = c0 + c1 ln(f / f_mean) (+ eta * share)``, eta >= 0, on the modes in ``modes_mask``.
+
+    The trend in log frequency is the baseline's: modal damping of a real structure drifts with frequency
+    (material loss, air, the supports), and a joint is named only for the part that follows its energy share.
+    Each mean is weighted by its standard error and the damping model's error (`damping_chi2`).
 
     Returns
     -------
@@ -124,20 +158,27 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
     """
     if obs.damping is None or obs.damping_se is None:
         raise ValueError("damping_fit: no damping was measured")
-    d, se = obs.damping[:, modes_mask], obs.damping_se[:, modes_mask]
+    d = obs.damping[:, modes_mask]
+    sd = np.sqrt(damping_variance(obs))[:, modes_mask]
     ok = ~np.isnan(d)
-    w = 1.0 / se[ok]
-    columns = [np.ones_like(d)]
+    w = 1.0 / sd[ok]
+    log_f = np.log(obs.frequency_hz / np.nanmean(obs.frequency_hz))
+    trend = np.nan_to_num(log_f - np.nanmean(log_f))
+    columns = [np.ones_like(obs.damping), trend] if int(np.sum(modes_mask)) >= 3 else [np.ones_like(obs.damping)]
     if share is not None:
-        columns.append(np.broadcast_to(share[modes_mask], d.shape))
-    a = np.stack([c[ok] for c in columns], axis=1) * w[:, None]
-    coef = np.linalg.lstsq(a, d[ok] * w, rcond=None)[0]
-    if share is not None and coef[1] < 0:  # a joint does not remove damping
-        coef = np.array([np.sum(d[ok] * w * w) / np.sum(w * w), 0.0])
-    full = np.ones_like(obs.damping) * coef[0]
-    if share is not None:
-        full = full + coef[1] * share[None, :]
-    return full, ({JOINT_DAMPING.parameter: float(coef[1])} if share is not None else {})
+        columns.append(np.broadcast_to(share, obs.damping.shape))
+
+    def solve(cols: list[np.ndarray]) -> np.ndarray:
+        a = np.stack([c[:, modes_mask][ok] for c in cols], axis=1) * w[:, None]
+        return np.linalg.lstsq(a, d[ok] * w, rcond=None)[0]
+
+    coef = solve(columns)
+    if share is not None and coef[-1] < 0:  # a joint does not remove damping
+        columns = columns[:-1]
+        coef = np.append(solve(columns), 0.0)
+        columns.append(np.broadcast_to(share, obs.damping.shape))
+    full = sum(c * k for c, k in zip(columns, coef))
+    return np.asarray(full, float), ({JOINT_DAMPING.parameter: float(coef[-1])} if share is not None else {})
 
 
 def _held_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.ndarray:
@@ -178,8 +219,8 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
         held_f = _held_out(lambda mask: fit_frequency(mask)[1], obs.frequency_hz)
     else:
         in_f = held_f = baseline_hz
-    in_chi2 = frequency_chi2(obs, in_f)
-    held_chi2_f = frequency_chi2(obs, held_f)
+    in_chi2 = in_chi2_f = frequency_chi2(obs, in_f)
+    held_chi2_f, held_logdet = frequency_score(obs, held_f, baseline_hz)
     held_chi2_d = 0.0
     d_rms = held_d_rms = None
     n_obs = int(np.sum(~np.isnan(obs.frequency_hz)))
@@ -191,12 +232,12 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
         held_d = _held_out(lambda mask: fit_damping(mask)[0], damping)
         if channel == "damping":
             params = d_params
-        in_chi2 += chi2(in_d - damping, damping_se)
-        held_chi2_d = chi2(held_d - damping, damping_se)
+        in_chi2 += damping_chi2(obs, in_d)
+        held_chi2_d = damping_chi2(obs, held_d)
         d_rms, held_d_rms = rms(in_d - damping), rms(held_d - damping)
         n_obs += int(np.sum(~np.isnan(damping)))
-    fit = CandidateFit(effect, where, params, channel, in_chi2, held_chi2_f + held_chi2_d, held_chi2_f, held_chi2_d,
-                       rms(in_f / obs.frequency_hz - 1.0), rms(held_f / obs.frequency_hz - 1.0),
-                       d_rms, held_d_rms, p_count, in_chi2 + p_count * math.log(max(n_obs, 2)))
+    fit = CandidateFit(effect, where, params, channel, in_chi2, in_chi2_f, held_chi2_f + held_chi2_d, held_chi2_f,
+                       held_chi2_d, rms(in_f / obs.frequency_hz - 1.0), rms(held_f / obs.frequency_hz - 1.0),
+                       d_rms, held_d_rms, p_count, in_chi2 + p_count * math.log(max(n_obs, 2)), held_logdet, n_obs)
     return fit, in_f
 

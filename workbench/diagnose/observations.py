@@ -7,6 +7,30 @@ line in amplitude (a mean when there is one condition), divided by the square ro
 condition's test count, with a relative floor (`RELATIVE_FLOOR`, 1e-4 for circle-fit frequencies:
 the extraction's bias at 40 dB is 3e-5; `DAMPING_FLOOR` for damping). Published means with a
 published std use ``std / sqrt(tests)``.
+
+**Model discrepancy.** A nominal model never reproduces a real structure's means to the precision with
+which a campaign measures them: the as-built sections and materials are off by tenths of a percent, the
+temperature moves every modulus. A gap is judged against the measurement error *plus* that model-form
+error (`Discrepancy`), so that the diagnosis does not read an as-built tolerance as an effect:
+
+- a **common shift** of every frequency (``common_sd``, `COMMON_SD` = 0.4 %: a material's E/rho known to
+  +-1 %, a few kelvin), the same in every mode and condition; the chi-square marginalises it, so its
+  value is estimated from the residual's mean structure rather than taken as an effect;
+- a **per-mode error** (``mode_sd``), the same at every excitation level, so that a difference between
+  levels (amplitude softening) is still measured against the scatter alone. It is the larger of
+  `MODEL_FLOOR` (0.2 %: section tolerances of a machined frame move bending modes by that much) and the
+  campaign's own relative test-to-test scatter: a structure that moves by ``s`` between two mountings is not
+  known, as built, to better than ``s``;
+- a candidate's **form**: an effect of the vocabulary is one parametrisation of a physical change (a
+  rotational spring for a clamp, a zone's modulus for a joint), and the real mechanism distributes its change
+  over the modes somewhat differently. A candidate's prediction of a mean is trusted to `FORM_SD` (10 %) of
+  the change it predicts there (`frequency_score`), on top of the errors above;
+- damping: each mode's damping ratio is modelled to `DAMPING_MODEL_SD` (20 %) of the campaign's typical
+  (median) damping ratio; modal damping of a real structure scatters from mode to mode by that much whatever
+  its model.
+
+These values were set on a development mix of the proving ground (`workbench.proving`, seed 9001) and frozen
+before its validation run (another seed); ``diagnosis.json`` states them.
 """
 
 from __future__ import annotations
@@ -17,10 +41,25 @@ import numpy as np
 
 from workbench.extraction.records import MeasuredModes
 
-__all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "Observations", "observations", "frequency_chi2", "chi2", "rms"]
+__all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "FORM_SD", "Discrepancy",
+           "Observations", "observations", "frequency_chi2", "frequency_chi2_many", "frequency_score", "damping_chi2",
+           "damping_variance", "chi2", "rms"]
 
 RELATIVE_FLOOR = 1e-4  # floor of the relative standard error of a mean frequency
 DAMPING_FLOOR = 0.02  # floor of the relative standard error of a mean damping ratio
+MODEL_FLOOR = 0.002  # per-mode relative model-form error, at least (module docstring)
+COMMON_SD = 0.004  # common relative shift of every frequency (module docstring)
+DAMPING_MODEL_SD = 0.2  # per-mode relative error of a damping model
+FORM_SD = 0.1  # relative error of a candidate's predicted change: its form is not the mechanism's
+
+
+@dataclass(frozen=True)
+class Discrepancy:
+    """The model-form error a gap is judged against (module docstring); every value relative."""
+
+    mode_sd: float = MODEL_FLOOR
+    common_sd: float = COMMON_SD
+    damping_sd: float = DAMPING_MODEL_SD
 
 
 @dataclass(frozen=True)
@@ -38,6 +77,21 @@ class Observations:
     frequency_cov: np.ndarray  # (n_cond, n_modes, n_modes) of the relative errors of the means
     damping: np.ndarray | None
     damping_se: np.ndarray | None
+    discrepancy: Discrepancy = Discrepancy(0.0, 0.0, 0.0)
+
+    def joint_covariance(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Which (condition, mode) means of the modes in ``mask`` are present, and the covariance of their
+        relative errors: each condition's measurement covariance plus the discrepancy, which is shared
+        between conditions (module docstring).
+        """
+        present = ~np.isnan(self.frequency_hz) & mask[None, :]
+        cond, mode = np.nonzero(present)
+        cov = np.zeros((cond.size, cond.size))
+        same_cond = cond[:, None] == cond[None, :]
+        cov[same_cond] = self.frequency_cov[cond[:, None], mode[:, None], mode[None, :]][same_cond]
+        d = self.discrepancy
+        cov += d.mode_sd ** 2 * (mode[:, None] == mode[None, :]) + d.common_sd ** 2
+        return present, cov
 
 
 def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -93,7 +147,7 @@ def _condition_means(values: np.ndarray, amplitude: np.ndarray, floor_rel: float
 
 
 def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR,
-                 damping_floor: float = DAMPING_FLOOR) -> Observations:
+                 damping_floor: float = DAMPING_FLOOR, discrepancy: Discrepancy | None = None) -> Observations:
     """Condition means, standard errors and covariances of a campaign's modes (module docstring).
 
     Parameters
@@ -101,6 +155,8 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
     measured : the measured modes (per test, or one row of published means with their std).
     relative_floor, damping_floor : floors of the relative standard errors of the mean frequencies
         and mean damping ratios.
+    discrepancy : the model-form error; None for the module docstring's (its per-mode error from the
+        campaign's scatter).
     """
     n_tests = measured.frequency_hz.shape[0]
     amplitude = measured.amplitude if measured.amplitude is not None else np.ones(n_tests)
@@ -115,30 +171,81 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
     d = d_se = None
     if measured.damping_ratio is not None:
         _, d, d_se, _ = _condition_means(measured.damping_ratio, amplitude, damping_floor, None, None)
-    return Observations(levels, f, f_se, f_cov, d, d_se)
+    if discrepancy is None:
+        covariance, usable = _test_covariance(measured.frequency_hz, amplitude, levels)
+        scatter = float(np.sqrt(np.mean(np.diag(covariance)[usable]))) if usable.any() else 0.0
+        if measured.published_std_hz is not None:
+            scatter = float(np.sqrt(np.nanmean((np.asarray(measured.published_std_hz) / np.nanmean(
+                measured.frequency_hz, axis=0)) ** 2)))
+        discrepancy = Discrepancy(max(MODEL_FLOOR, scatter))
+    return Observations(levels, f, f_se, f_cov, d, d_se, discrepancy)
 
 
 def frequency_chi2(obs: Observations, predicted_hz: np.ndarray, mask: np.ndarray | None = None,
                    cache: dict | None = None) -> float:
-    """``sum_c r_c^T C_c^-1 r_c`` of the relative residuals over the modes in ``mask``.
+    """``r^T C^-1 r`` of the relative residuals of every condition's means over the modes in ``mask``, ``C``
+    the measurement covariance plus the discrepancy (`Observations.joint_covariance`).
 
-    ``predicted_hz`` (n_cond, n_modes), Hz. ``cache`` keeps the inverted covariances between calls
-    with the same missing means.
+    ``predicted_hz`` (n_cond, n_modes), Hz; a NaN prediction of a present mean gives inf. ``cache`` keeps the
+    inverted covariance between calls with the same mask.
     """
-    r = predicted_hz / obs.frequency_hz - 1.0
-    mask = np.ones(r.shape[1], bool) if mask is None else mask
-    total = 0.0
-    for c in range(r.shape[0]):
-        idx = mask & ~np.isnan(r[c])
-        key = (c, idx.tobytes())
-        if cache is None or key not in cache:
-            w = np.linalg.inv(obs.frequency_cov[c][np.ix_(idx, idx)])
-            if cache is not None:
-                cache[key] = w
-        else:
-            w = cache[key]
-        total += float(r[c, idx] @ w @ r[c, idx])
-    return total
+    return float(frequency_chi2_many(obs, predicted_hz[None], mask, cache)[0])
+
+
+def frequency_chi2_many(obs: Observations, predicted_hz: np.ndarray, mask: np.ndarray | None = None,
+                        cache: dict | None = None) -> np.ndarray:
+    """`frequency_chi2` of each of ``predicted_hz`` (n_u, n_cond, n_modes): (n_u,)."""
+    mask = np.ones(obs.frequency_hz.shape[1], bool) if mask is None else mask
+    key = mask.tobytes()
+    if cache is None or key not in cache:
+        present, cov = obs.joint_covariance(mask)
+        entry = (present, np.linalg.inv(cov))
+        if cache is not None:
+            cache[key] = entry
+    else:
+        entry = cache[key]
+    present, w = entry
+    r = (predicted_hz / obs.frequency_hz - 1.0)[:, present]
+    out = np.einsum("gi,ij,gj->g", r, w, r)
+    return np.where(np.all(np.isfinite(r), axis=1), out, np.inf)
+
+
+def frequency_score(obs: Observations, predicted_hz: np.ndarray, reference_hz: np.ndarray) -> tuple[float, float]:
+    """``(chi2, log_det)`` of a candidate's predicted means under the covariance of `frequency_chi2` plus its
+    form's error, ``(FORM_SD * (predicted / reference - 1))^2`` on each mean (module docstring).
+
+    ``log_det`` is ``log det C_form - log det C``: ``chi2 + log_det`` is minus twice the Gaussian log density up
+    to a constant shared by every candidate, so that a candidate does not gain by predicting large changes.
+    """
+    mask = np.ones(obs.frequency_hz.shape[1], bool)
+    present, cov = obs.joint_covariance(mask)
+    extra = (FORM_SD * (predicted_hz / reference_hz - 1.0))[present]
+    r = (predicted_hz / obs.frequency_hz - 1.0)[present]
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(extra))):
+        return float("inf"), 0.0
+    widened = cov + np.diag(extra ** 2)
+    chi2 = float(r @ np.linalg.solve(widened, r))
+    return chi2, float(np.linalg.slogdet(widened)[1] - np.linalg.slogdet(cov)[1])
+
+
+def damping_chi2(obs: Observations, predicted: np.ndarray) -> float:
+    """Chi-square of predicted damping ratios against the measured means (`damping_variance`); 0 without
+    measured damping.
+    """
+    if obs.damping is None or obs.damping_se is None:
+        return 0.0
+    r = predicted - obs.damping
+    return float(np.nansum(r * r / damping_variance(obs)))
+
+
+def damping_variance(obs: Observations) -> np.ndarray:
+    """(n_cond, n_modes) variance of each mean damping ratio against a damping model: its standard error's
+    square plus ``(damping_sd * median zeta)^2``, the model's error on the campaign's typical damping (not on
+    each mode's own, which would allow a mode a joint damps more error the more it is damped).
+    """
+    if obs.damping is None or obs.damping_se is None:
+        raise ValueError("damping_variance: no damping was measured")
+    return obs.damping_se ** 2 + (obs.discrepancy.damping_sd * float(np.nanmedian(obs.damping))) ** 2
 
 
 def chi2(residual: np.ndarray, se: np.ndarray) -> float:

@@ -78,6 +78,7 @@ class CaseSpec:
     where : the effect's place, None to draw one.
     secondary, secondary_variant : a combined case's weaker effect and its mechanism.
     design : ``blind`` or ``paper`` (module docstring). joint_cov : the blind design's joint scatter.
+    blind_tests : the blind design's number of tests (even: low and high amplitude alternating).
     """
 
     case: int
@@ -91,6 +92,7 @@ class CaseSpec:
     secondary_variant: str | None = None
     design: str = "blind"
     joint_cov: float = 0.02
+    blind_tests: int = 8
 
 
 def case_mix(n_cases: int, seed: int) -> list[CaseSpec]:
@@ -128,10 +130,10 @@ def _bolt_factors(frame: Frame) -> tuple[Factor, ...]:
                  for k, j in enumerate(frame.joint_names))
 
 
-def design_of(kind: str, frame: Frame) -> tuple[tuple[Factor, ...], list[dict[str, str]]]:
-    """The factors and tests of a design (module docstring): ``blind`` or ``paper``."""
+def design_of(kind: str, frame: Frame, blind_tests: int = 8) -> tuple[tuple[Factor, ...], list[dict[str, str]]]:
+    """The factors and tests of a design (module docstring): ``blind`` (``blind_tests`` of them) or ``paper``."""
     if kind == "blind":
-        return (_AMPLITUDE,), [{"amplitude": level} for level in ("low", "high") * 4]
+        return (_AMPLITUDE,), [{"amplitude": level} for level in ("low", "high") * (blind_tests // 2)]
     if kind != "paper":
         raise ValueError(f"design_of: {kind!r} is not blind or paper")
     bolts = _bolt_factors(frame)
@@ -209,7 +211,7 @@ def case_campaign(spec: CaseSpec, settings: CampaignSettings | None = None,
             article, secondary = second.build(article, x2), _effect_record(second, x2, fp2, target)
     if spec.design == "blind":
         nominal = replace(nominal, joints=tuple(replace(j, cov=0.0) for j in nominal.joints))
-    factors, tests = design_of(spec.design, frame)
+    factors, tests = design_of(spec.design, frame, spec.blind_tests)
     laws = _joint_laws(spec, frame, rng)
     name = f"proving-ground case {spec.case}: {spec.kind} {spec.level}".strip()
     campaign, truth = simulate_campaign(nominal, article, factors, tests, laws, spec.seed, settings, name=name,

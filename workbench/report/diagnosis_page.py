@@ -1,7 +1,7 @@
 """The gap diagnosis's page and text: the readable ``index.html`` beside ``diagnosis.json`` (with each
-of its tables as CSV), and the blind validation's printed summary.
+of its tables as CSV).
 
-The numbers come from `workbench.workflow.diagnosis` (`workbench.diagnose`, `workbench.workflow.rig_cases`);
+The numbers come from `workbench.workflow.diagnosis` (`workbench.diagnose`);
 this module only draws figures and writes HTML and text. Frequencies in Hz, relative errors,
 shrinkage and confidence in %, each fitted parameter in its registry unit (`workbench.rig.effects`).
 """
@@ -21,7 +21,7 @@ from workbench.report.summary import SUMMARY_CSS
 from workbench.report.tables import Tables
 from workbench.rig.effects import EFFECTS, JOINT_DAMPING, NONE, UNEXPLAINED
 
-__all__ = ["diagnosis_html", "diagnosis_files", "verdict_summary", "validation_text"]
+__all__ = ["diagnosis_html", "diagnosis_files", "verdict_summary"]
 
 
 def _verdict_fitted(d: Diagnosis) -> bool:
@@ -130,6 +130,22 @@ def _share_text(after: float, before: float) -> str:
             f"{100 * after:.3g} % against {100 * before:.3g} %)")
 
 
+def _discrepancy_text(record: dict) -> str:
+    d = record.get("discrepancy")
+    if not d:
+        return "not stated"
+    return (f"{100 * d['mode_sd']:.2f} % per mode, {100 * d['common_sd']:.2f} % common to every mode, damping "
+            f"{100 * d['damping_sd']:.0f} % of its typical value, a candidate's prediction "
+            f"{100 * d.get('form_sd', 0.0):.0f} % of the change it predicts")
+
+
+def _gaps_text(record: dict) -> str:
+    gaps = record.get("gaps") or {}
+    parts = [f"{name}: chi-square {g['chi2']:.3g} against {g['threshold']:.3g} allowed"
+             f" ({'a gap' if g['gap'] else 'within the errors'})" for name, g in gaps.items()]
+    return "; ".join(parts) or "not tested"
+
+
 def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]:
     """The summary's lines, ``(label, text)``: verdict, where, confidence, shrinkage, what is left unexplained."""
     v = record["verdict"]
@@ -163,6 +179,7 @@ def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]
                           f"{100 * partial['shrinkage']:.1f} %"))
     else:
         lines.append(("shrinkage", "nothing to shrink: no gap beyond the scatter"))
+    lines.append(("gap tests", _gaps_text(record)))
     for also in v.get("also") or ():
         lines.append(("together with", f"{also['effect']} @ {also.get('where')}, shrinkage "
                       f"{100 * also['shrinkage']:.1f} %"))
@@ -214,10 +231,13 @@ and shrinkage in %; every table is also a CSV file beside this page (linked belo
 <h2>Candidate effects, all {len(record['ranking'])}, best first</h2>{rank}
 <h2>Protocol</h2><p>{html.escape(record['protocol'])}. Each candidate is the nominal frame changed by one effect
 of the vocabulary (CONTRACTS.md section 3) with one parameter (two for a mass on a member: its position),
-fitted on exact eigen-solutions. Verdict rules: <code>none</code> when the nominal model's chi-square per
-observation is within the scatter; otherwise the best candidate if its held-out chi-square per observation is
-within the scatter allowance and it shrinks the held-out error meaningfully; else <code>unexplained</code>.
-See <code>workbench/diagnose/</code>.</p>
+fitted on exact eigen-solutions. Every test measures residuals against the measurement error plus the
+model-form error a nominal model of a real structure carries ({_discrepancy_text(record)}). Verdict rules,
+channel by channel (frequency, damping): <code>none</code> when no channel's chi-square exceeds its 99 %
+quantile; otherwise the best candidate on a channel with a gap, if its held-out chi-square is within its 99 %
+quantile, it shrinks the held-out error by 10 % or more and its effect carries more than half the weight of
+all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the gap; else
+<code>unexplained</code> with the best partial explanation. See <code>workbench/diagnose/decision.py</code>.</p>
 </main></body></html>
 """
     return {"index.html": page, **tables.files()}
@@ -226,32 +246,3 @@ See <code>workbench/diagnose/</code>.</p>
 def diagnosis_html(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> str:
     """The self-contained page alone (`diagnosis_files`'s ``index.html``)."""
     return diagnosis_files(record, diagnosis, synthetic, source)["index.html"]
-
-
-def validation_text(summary: dict) -> str:
-    """The confusion matrix, accuracies and shrinkage quantiles as printed by the command."""
-    confusion = summary["confusion"]
-    verdicts = [v for v in next(iter(confusion.values())) if any(row[v] for row in confusion.values())]
-    short = {v: v.replace("_", " ")[:11] for v in verdicts}
-    lines = [f"blind validation: {summary['cases']} cases, seed {summary['seed']}, frame {summary['frame']}",
-             "confusion (rows: hidden effect, columns: verdict)",
-             f"{'':22s}" + "".join(f"{short[v]:>12s}" for v in verdicts)]
-    for truth, row in confusion.items():
-        if sum(row.values()):
-            lines.append(f"{truth:22s}" + "".join(f"{row[v]:12d}" for v in verdicts))
-    place = summary["place_accuracy"]
-    lines += [f"top-1 effect right: {100 * summary['top1_accuracy']:.1f} %",
-              f"place right: {'-' if place is None else f'{100 * place:.1f} %'} of the "
-              f"{summary['place_checked']} right "
-              "verdicts that have a place",
-              f"no effect -> none: {summary['none_right']}; outside the vocabulary -> unexplained: "
-              f"{summary['outside_right']}"]
-    for key, label in (("shrinkage_right_verdicts", "shrinkage, right verdicts"),
-                       ("shrinkage_all_effects", "shrinkage, every vocabulary case (0 when wrong)")):
-        q = summary[key]
-        if q:
-            lines.append(f"{label}: median {100 * q['median']:.1f} % (min {100 * q['min']:.1f}, p10 "
-                         f"{100 * q['p10']:.1f}, p90 {100 * q['p90']:.1f}, max {100 * q['max']:.1f})")
-    lines.append(f"mean diagnosis time per case {summary['mean_wall_time_s']:.1f} s; "
-                 f"total {summary['wall_time_s']:.0f} s")
-    return "\n".join(lines)

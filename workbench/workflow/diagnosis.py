@@ -1,9 +1,9 @@
-"""The gap diagnosis of a campaign, and its blind validation on the virtual rig: the numbers the commands write.
+"""The gap diagnosis of a campaign, and its blind validation on the proving ground: what the commands write.
 
 `diagnose_campaign` is the computing part of ``workbench diagnose`` (read the campaign, its measured
 modes, diagnose, the ``diagnosis.json`` record); `validate` that of ``workbench validate-diagnosis``
-(blind rig cases, `workbench.workflow.rig_cases`, and their summary), and `validation_files` the
-texts it writes. The page is drawn by `workbench.report.diagnosis_page`; the command line writes.
+(blind proving-ground cases, `workbench.workflow.proving_validation`, and their scores), and
+`validation_files` the files it writes. The pages are drawn by `workbench.report.diagnosis_page`.
 """
 
 from __future__ import annotations
@@ -14,20 +14,22 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL, MIN_SHRINKAGE, NAME_CONFIDENCE, PAIR_EVIDENCE
+from workbench.diagnose.observations import COMMON_SD, DAMPING_MODEL_SD, FORM_SD, MODEL_FLOOR
 from workbench.diagnose.verdict import Diagnosis, diagnose, diagnosis_record
 from workbench.io.campaign import Campaign, load_campaign
 from workbench.io.outputs import csv_text, json_text
-from workbench.model.frame import Frame
-from workbench.model.frame_file import read_frame
 from workbench.progress import Progress
+from workbench.proving.campaigns import SOURCE
 from workbench.tasks import Mapper, serial_mapper
 from workbench.workflow.measured import measured_modes
-from workbench.workflow.rig_cases import CASE_TYPES, CaseResult, run_case, summarise
+from workbench.workflow.proving_validation import ProvingResult, run_proving_case, score, validation_specs
 
 __all__ = ["CampaignDiagnosis", "diagnose_campaign", "validate", "validation_files"]
 
-CASE_COLUMNS = ["seed", "truth", "truth_where", "truth_parameters", "expected", "verdict", "where", "shrinkage",
-                "effect_right", "place_right", "wall_time_s"]
+CASE_COLUMNS = ["case", "seed", "frame", "category", "truth", "secondary", "level", "truth_where", "mechanism",
+                "footprint", "verdict", "where", "also", "partial", "confidence", "shrinkage", "right", "named_wrong",
+                "place_right", "wall_time_s"]
 
 
 @dataclass(frozen=True)
@@ -59,38 +61,37 @@ def diagnose_campaign(path: str | Path, count: int | None = None,
     return CampaignDiagnosis(campaign, result, record)
 
 
-def _case(frame: Frame, task: tuple[str, int]) -> CaseResult:
-    """One validation case: ``task = (effect kind, seed)``; the frame is shared by all."""
-    return run_case(frame, *task)
+def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Mapper | None = None) -> dict[str, Any]:
+    """``cases`` blind proving-ground cases from ``seed`` (`workbench.workflow.proving_validation`), scored.
 
-
-def validate(cases: int, seed: int, frame_path: str | Path, progress: Progress | None = None,
-             mapper: Mapper | None = None) -> dict[str, Any]:
-    """``cases`` blind cases from ``seed`` on the frame file (`workbench.workflow.rig_cases`), summarised.
-
-    The effect types come in turn (`CASE_TYPES`); case ``i`` is seeded ``seed * 100003 + i``.
     ``progress("validation cases", done, cases)`` is called after each case when no ``mapper``
-    (`workbench.tasks.Mapper`, e.g. Dask's) runs them; a case's numbers depend only on its seed.
+    (`workbench.tasks.Mapper`, e.g. Dask's) runs them; a case's numbers depend only on the seed.
 
     Returns
     -------
-    `workbench.workflow.rig_cases.summarise` of the cases, with ``seed``, ``frame``, ``wall_time_s``
-    (s) and ``results`` (the `CaseResult` of every case).
+    `workbench.workflow.proving_validation.score` of the cases, with ``seed``, ``generator``, ``wall_time_s``
+    (s), the decision's frozen levels (``levels``) and ``results`` (the `ProvingResult` of every case).
     """
-    frame = read_frame(frame_path)
-    kinds = [CASE_TYPES[i % len(CASE_TYPES)] for i in range(cases)]
     start = time.perf_counter()
     run = mapper or serial_mapper(progress)
-    results = run(_case, [(kinds[i], seed * 100_003 + i) for i in range(cases)], "validation cases", frame)
-    summary = summarise(results)
-    summary.update({"seed": seed, "frame": str(frame_path), "wall_time_s": time.perf_counter() - start})
+    results = run(run_proving_case, validation_specs(cases, seed), "validation cases", None)
+    summary = score(results)
+    summary.update({"seed": seed, "generator": SOURCE, "wall_time_s": time.perf_counter() - start,
+                    "levels": {"gap_level": GAP_LEVEL, "explained_level": EXPLAINED_LEVEL,
+                               "min_shrinkage": MIN_SHRINKAGE, "name_confidence": NAME_CONFIDENCE,
+                               "pair_evidence": PAIR_EVIDENCE, "model_floor": MODEL_FLOOR, "common_sd": COMMON_SD,
+                               "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD}})
     summary["results"] = results
     return summary
 
 
 def validation_files(summary: dict[str, Any]) -> dict[str, str | bytes]:
-    """``summary.json`` (the summary without its results) and ``cases.csv`` (one row per case) of `validate`."""
-    rows = [(r.seed, r.truth, r.truth_where, json_text(r.truth_parameters).strip(), r.expected, r.verdict, r.where,
-             r.shrinkage, r.effect_right, r.place_right, r.wall_time_s) for r in summary["results"]]
-    return {"summary.json": json_text({k: v for k, v in summary.items() if k != "results"}),
-            "cases.csv": csv_text(CASE_COLUMNS, rows)}
+    """``validation.json`` (the summary and one compact entry per case) and ``cases.csv`` (one row per case, the
+    diagnosis's wall time last) of `validate`; the page (`workbench.report.validation_page.validation_html`)
+    reads the JSON record.
+    """
+    results: list[ProvingResult] = summary["results"]
+    rows = [tuple(getattr(r, c) if c not in ("also",) else " ".join(r.also) for c in CASE_COLUMNS) for r in results]
+    record = {k: v for k, v in summary.items() if k != "results"}
+    record["case_results"] = [dict(zip(CASE_COLUMNS, row)) for row in rows]
+    return {"validation.json": json_text(record), "cases.csv": csv_text(CASE_COLUMNS, rows)}

@@ -71,9 +71,17 @@ class Extraction:
         """(n_modes,) mode numbers, 1 = lowest."""
         return np.arange(1, len(self.bands) + 1)
 
+    def _usable(self, e: ModeEstimate, k: int) -> bool:
+        """Not flagged unusable, and its frequency within its band widened by the band's width each side: a fit
+        that put the pole far outside the data it fitted (once 2e15 Hz) estimates nothing.
+        """
+        lo, hi = self.bands[k]
+        inside = bool(np.isfinite(e.frequency_hz) and lo - (hi - lo) <= e.frequency_hz <= hi + (hi - lo))
+        return inside and not set(UNUSABLE_FLAGS) & set(e.flags)
+
     def _table(self, value: Callable[[ModeEstimate], float], usable: bool) -> np.ndarray:
-        return np.array([[value(e) if not (usable and set(UNUSABLE_FLAGS) & set(e.flags)) else np.nan
-                          for e in self.estimates[t]] for t in self.tests], float)
+        return np.array([[value(e) if not usable or self._usable(e, k) else np.nan
+                          for k, e in enumerate(self.estimates[t])] for t in self.tests], float)
 
     def frequency_hz(self, usable: bool = True) -> np.ndarray:
         """(n_tests, n_modes) natural frequencies, Hz; NaN where the fit is unusable (`UNUSABLE_FLAGS`)."""

@@ -1,0 +1,223 @@
+"""The verdict: is there a gap, on which channel, which effect explains it, and how sure the diagnosis is.
+
+Every test below measures residuals against the measurement error *plus* the model-form error the campaign
+allows (`workbench.diagnose.observations.Discrepancy`), so that a model that is as good as a nominal model of
+a real structure can be is not said to miss. The levels are frozen constants (fixed before the validation on
+the proving ground, never tuned on it):
+
+1. **A gap, channel by channel.** Frequencies have a gap when the baseline's chi-square exceeds its
+   ``1 - GAP_LEVEL`` quantile (chi-square law, one degree of freedom per mean); damping likewise, with the
+   degrees of freedom of its two fitted parameters removed. An effect is named only on a channel with a gap:
+   a damping gap never licenses a frequency effect.
+2. **Explained.** The best candidate on that channel (least held-out score, leave one mode out)
+   explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
+   the held-out error by at least `MIN_SHRINKAGE`.
+3. **Confidence** (``verdict.confidence``): the pseudo-Bayesian-model-average weight of the named effect
+   type, ``w_i ~ exp(-score_i / 2)`` over the channel's candidates and the baseline, the score being minus
+   twice the leave-one-out log predictive density (held-out chi-square plus the log determinant of the
+   covariance the candidate's form error widens, `workbench.diagnose.observations.frequency_score`), summed
+   over the places of that effect. An effect is named only above `NAME_CONFIDENCE`: two effects that
+   predict the held-out modes equally well are not told apart, and the diagnosis says so (``partial``).
+4. **Two effects** (``also``): when no single candidate explains a frequency gap, the best pair
+   (`workbench.diagnose.combined`) that does, each of its effects lowering the in-sample chi-square by
+   `PAIR_EVIDENCE` or more; an explained damping gap adds ``joint_damping`` to a frequency verdict.
+5. **Otherwise** ``unexplained``, with the best partial explanation (``partial``: the best candidate on a
+   channel with a gap, when it shrinks the held-out error at all). ``none`` only when no channel has a gap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2 as chi2_law
+
+from workbench.diagnose.combined import PairFit
+from workbench.diagnose.fitting import CandidateFit
+from workbench.diagnose.observations import Observations, frequency_chi2
+from workbench.rig.effects import NONE, UNEXPLAINED
+
+__all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
+           "channel_gaps", "decide", "type_confidence"]
+
+GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
+EXPLAINED_LEVEL = 0.01  # a candidate's held-out chi-square within its 99 % quantile: explained
+MIN_SHRINKAGE = 0.1  # and its held-out RMS error shrinks by at least this much (a sanity check: the chi-square decides)
+NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
+PAIR_EVIDENCE = 6.0  # each effect of a pair lowers the in-sample chi-square by this ("strong" on the BIC scale)
+DAMPING_PARAMETERS = 2  # the damping baseline's level and trend
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The decision of `decide` (module docstring); ``best_hz`` the named effect's in-sample means, Hz."""
+
+    effect: str
+    where: str | None
+    shrinkage: float
+    confidence: float
+    best_hz: np.ndarray | None
+    partial: dict | None = None
+    also: list[dict] = field(default_factory=list)
+    gaps: dict = field(default_factory=dict)
+
+
+def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit) -> dict[str, dict]:
+    """Each channel's baseline chi-square, its degrees of freedom, its threshold and whether it is a gap."""
+    n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
+    n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
+    chi2_f = frequency_chi2(obs, baseline_hz)
+    chi2_d = baseline_fit.chi2 - chi2_f  # the damping baseline's in-sample part
+    out = {}
+    for name, value, dof in (("frequency", chi2_f, n_f), ("damping", chi2_d, n_d - DAMPING_PARAMETERS)):
+        if dof < 1:
+            continue
+        threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
+        out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "gap": bool(value > threshold),
+                     "observations": n_f if name == "frequency" else n_d}
+    return out
+
+
+def _heldout(fit: CandidateFit) -> float:
+    """The held-out chi-square on the candidate's channel (the explained test)."""
+    return fit.heldout_chi2_damping if fit.channel == "damping" else fit.heldout_chi2_frequency
+
+
+def _score(fit: CandidateFit) -> float:
+    """Minus twice the held-out log predictive density on the candidate's channel (the weights and the order)."""
+    if fit.channel == "damping":
+        return fit.heldout_chi2_damping + fit.extra_charge
+    return fit.heldout_chi2_frequency + fit.heldout_logdet + fit.extra_charge
+
+
+def _shrinkage(fit: CandidateFit, baseline: CandidateFit) -> float:
+    if fit.channel == "damping":
+        after, before = fit.heldout_damping_rms_error, baseline.heldout_damping_rms_error
+        if after is None or before is None:
+            raise ValueError(f"{fit.effect}: a damping candidate without measured damping")
+        return 1.0 - after / before
+    return 1.0 - fit.heldout_freq_rms_rel_error / baseline.heldout_freq_rms_rel_error
+
+
+def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effect: str) -> float:
+    """Pseudo-BMA weight of ``effect`` among ``candidates`` (one channel) and the baseline (module docstring)."""
+    scores = np.array([_score(c) for c in candidates]
+                      + [baseline.heldout_chi2_damping if candidates and candidates[0].channel == "damping"
+                         else baseline.heldout_chi2_frequency])
+    scores = np.where(np.isfinite(scores), scores, np.inf)
+    w = np.exp(-0.5 * (scores - scores.min()))
+    return float(np.sum(w[:-1][[c.effect == effect for c in candidates]]) / np.sum(w))
+
+
+def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
+    limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
+    return bool(_heldout(fit) <= limit and _shrinkage(fit, baseline) >= MIN_SHRINKAGE)
+
+
+def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = None) -> dict:
+    return {"effect": fit.effect, "where": fit.where, "parameters": parameters or fit.parameters,
+            "shrinkage": float(_shrinkage(fit, baseline))}
+
+
+def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: CandidateFit,
+                  gap: dict) -> tuple[PairFit, float] | None:
+    """The best pair that explains the frequency gap (module docstring), with its weight among singles and pairs."""
+    limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
+    before = baseline.heldout_freq_rms_rel_error
+    for pair in pairs:
+        evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
+        if (pair.heldout_chi2_frequency <= limit and 1.0 - pair.heldout_freq_rms_rel_error / before >= MIN_SHRINKAGE
+                and evidence >= PAIR_EVIDENCE):
+            scores = np.array([p.heldout_chi2_frequency + p.heldout_logdet for p in pairs]
+                              + [_score(c) for c in singles] + [baseline.heldout_chi2_frequency])
+            scores = np.where(np.isfinite(scores), scores, np.inf)
+            w = np.exp(-0.5 * (scores - scores.min()))
+            own = pair.heldout_chi2_frequency + pair.heldout_logdet
+            return pair, float(np.exp(-0.5 * (own - scores.min())) / np.sum(w))
+    return None
+
+
+def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
+             gap: dict) -> tuple[CandidateFit | None, float, CandidateFit | None]:
+    """``(named candidate or None, its confidence, the best candidate)`` on one channel with a gap."""
+    eligible = sorted((c for c in ranking if c.channel == channel and math.isfinite(_score(c))), key=_score)
+    if not eligible:
+        return None, 0.0, None
+    best = eligible[0]
+    confidence = type_confidence(eligible, baseline, best.effect)
+    if _explains(best, baseline, gap) and confidence > NAME_CONFIDENCE:
+        return best, confidence, best
+    return None, confidence, best
+
+
+def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, ranking: list[CandidateFit],
+           predictions: dict, pairs: list[PairFit] | None = None) -> Verdict:
+    """The verdict (module docstring). ``ranking`` best held-out chi-square first; ``predictions`` each
+    candidate's in-sample means by ``(effect, where)``; ``pairs`` `workbench.diagnose.combined.pair_fits`'s
+    (None: not computed, as when a single candidate explains the frequency gap).
+    """
+    gaps = channel_gaps(obs, baseline_hz, baseline)
+    if not any(g["gap"] for g in gaps.values()):
+        worst = max((chi2_law.cdf(g["chi2"], g["dof"]) for g in gaps.values()), default=0.0)
+        return Verdict(NONE.name, None, 0.0, float(1.0 - worst), None, gaps=gaps)
+    named: dict[str, tuple[CandidateFit, float]] = {}
+    best: dict[str, CandidateFit] = {}
+    for channel in ("frequency", "damping"):
+        if channel in gaps and gaps[channel]["gap"]:
+            fit, confidence, top = _channel(channel, ranking, baseline, gaps[channel])
+            if fit is not None:
+                named[channel] = (fit, confidence)
+            if top is not None:
+                best[channel] = top
+    also: list[dict] = []
+    if "frequency" in named:
+        primary, confidence = named["frequency"]
+        best_hz = predictions[(primary.effect, primary.where)]
+    elif "frequency" in gaps and gaps["frequency"]["gap"] and pairs:
+        chosen = _pair_verdict(pairs, [c for c in ranking if c.channel == "frequency"], baseline, gaps["frequency"])
+        if chosen is None:
+            return _unexplained(best, baseline, gaps, ranking)
+        pair, confidence = chosen
+        primary, best_hz = pair.first, pair.predicted_hz
+        also.append({**_entry(pair.second, baseline, pair.parameters[1])})
+        if confidence <= NAME_CONFIDENCE:
+            return _unexplained(best, baseline, gaps, ranking)
+        entry = _entry(primary, baseline, pair.parameters[0])
+        if "damping" in named:
+            also.append(_entry(named["damping"][0], baseline))
+        return Verdict(primary.effect, primary.where, entry["shrinkage"], confidence, best_hz, also=also, gaps=gaps)
+    elif "frequency" in gaps and gaps["frequency"]["gap"]:
+        return _unexplained(best, baseline, gaps, ranking)
+    elif "damping" in named:
+        primary, confidence = named["damping"]
+        best_hz = predictions[(primary.effect, primary.where)]
+    else:
+        return _unexplained(best, baseline, gaps, ranking)
+    if "damping" in named and primary is not named["damping"][0]:
+        also.append(_entry(named["damping"][0], baseline))
+    return Verdict(primary.effect, primary.where, _shrinkage(primary, baseline), confidence, best_hz, also=also,
+                   gaps=gaps)
+
+
+def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: dict,
+                 ranking: list[CandidateFit]) -> Verdict:
+    """``unexplained`` with the best partial explanation: the best candidate of the channel with the larger gap.
+
+    Its confidence: where that candidate fits but other effects predict as well, one minus its weight (how sure
+    no single effect can be named); else the probability that its held-out misfit is beyond chance.
+    """
+    ranked = sorted(best.values(), key=lambda c: -gaps[c.channel]["chi2"] / gaps[c.channel]["threshold"])
+    top = ranked[0] if ranked else None
+    partial = None
+    confidence = 1.0
+    if top is not None:
+        shrink = _shrinkage(top, baseline)
+        if shrink > 0.0:
+            partial = {"effect": top.effect, "where": top.where, "shrinkage": float(shrink)}
+        g = gaps[top.channel]
+        confidence = float(chi2_law.cdf(_heldout(top), g["observations"]))
+        if _explains(top, baseline, g):
+            same = [c for c in ranking if c.channel == top.channel and math.isfinite(_score(c))]
+            confidence = 1.0 - type_confidence(same, baseline, top.effect)
+    return Verdict(UNEXPLAINED, None, 0.0, confidence, None, partial=partial, gaps=gaps)
