@@ -457,11 +457,14 @@ def test_an_exact_candidate_is_never_worded_as_unexplained_zero(diagnosed, tmp_p
     text = visible_text(_diagnosis_page(record, found, tmp_path / "accepted"))
     assert "unexplained 0 %" not in text and "leaves 0 %" not in text
     top = record["ranking"][0]["heldout_freq_rms_rel_error"] / found.baseline.heldout_freq_rms_rel_error
-    assert top < 0.005 and f"{100 * top:.2g} %" in text  # the share left, said as it is
+    # near exact (the fit weighs the modes by the measurement error and the model discrepancy, so about 1 % of
+    # the baseline's RMS error stays), and the share left said as it is
+    said = f"leaves {100 * top:.2g} %" if top < 0.005 else f"leaves {100 * top:.1f} %"
+    assert top < 0.02 and said in text
     # the same data with the verdict withheld: the page says no shrinkage was accepted and what the best candidate
     # would leave, never "0 %"
     refused = dataclasses.replace(found, verdict="unexplained", where=None, shrinkage=0.0, best_hz=None)
     record = {**record, "verdict": {"effect": "unexplained", "where": None, "shrinkage": 0.0}}
     text = visible_text(_diagnosis_page(record, refused, tmp_path / "refused"))
     assert "unexplained 0 %" not in text and "no candidate effect was accepted" in text
-    assert "not accepted" in text and f"{100 * top:.2g} %" in text
+    assert "not accepted" in text and said in text
