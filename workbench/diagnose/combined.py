@@ -39,6 +39,11 @@ class PairFit:
     predicted_hz: np.ndarray
     heldout_logdet: float = 0.0  # as `CandidateFit.heldout_logdet`
 
+    @property
+    def heldout_score(self) -> float:
+        """As `CandidateFit.heldout_score` (two parameters, neither chosen beyond the leave-one-out refit)."""
+        return self.heldout_chi2_frequency + self.heldout_logdet
+
 
 def _fit(models: tuple[Frequencies, Frequencies], start: tuple[float, float], obs: Observations,
          baseline_hz: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -62,18 +67,18 @@ def _fit(models: tuple[Frequencies, Frequencies], start: tuple[float, float], ob
     return lo + np.clip(x, 0.0, 1.0) * span, predict(x), float(cost(x))
 
 
-def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None], Frequencies],
-              starts: dict[tuple[str, str | None], float], obs: Observations,
+def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None], Frequencies], obs: Observations,
               baseline_hz: np.ndarray) -> list[PairFit]:
     """Every pair among the `PAIR_POOL` best frequency candidates of ``singles`` (ranked best first), fitted in
     sample and leave one mode out, best held-out score first (`CandidateFit.heldout_score`).
 
-    ``models`` holds each candidate's `Frequencies` and ``starts`` its single fit's coordinate, by
-    ``(effect, where)``.
+    ``models`` holds each candidate's `Frequencies` by ``(effect, where)``; each pair starts from its two
+    single fits on every mode.
     """
     pool = [c for c in singles if c.channel == "frequency" and (c.effect, c.where) in models][:PAIR_POOL]
     n_modes = obs.frequency_hz.shape[1]
     everything = np.ones(n_modes, bool)
+    starts = {(c.effect, c.where): models[(c.effect, c.where)].fit(everything)[0] for c in pool}
     out = []
     for first, second in itertools.combinations(pool, 2):
         keys = ((first.effect, first.where), (second.effect, second.where))
@@ -89,8 +94,7 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None], 
         held_chi2, held_logdet = frequency_score(obs, held, baseline_hz)
         out.append(PairFit(first, second, params, in_chi2, held_chi2, rms(in_hz / obs.frequency_hz - 1.0),
                            rms(held / obs.frequency_hz - 1.0), in_hz, held_logdet))
-    out.sort(key=lambda p: p.heldout_chi2_frequency + p.heldout_logdet
-             if math.isfinite(p.heldout_chi2_frequency) else np.inf)
+    out.sort(key=lambda p: p.heldout_score if math.isfinite(p.heldout_chi2_frequency) else np.inf)
     return out
 
 

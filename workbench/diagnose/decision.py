@@ -100,14 +100,20 @@ def _shrinkage(fit: CandidateFit, baseline: CandidateFit) -> float:
     return 1.0 - fit.heldout_freq_rms_rel_error / baseline.heldout_freq_rms_rel_error
 
 
+def _weights(scores: list[float]) -> np.ndarray:
+    """Pseudo-BMA weights ``exp(-score / 2)``, normalised; a non-finite score weighs nothing."""
+    s = np.array(scores, float)
+    s = np.where(np.isfinite(s), s, np.inf)
+    w = np.exp(-0.5 * (s - s.min()))
+    return w / np.sum(w)
+
+
 def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effect: str) -> float:
     """Pseudo-BMA weight of ``effect`` among ``candidates`` (one channel) and the baseline (module docstring)."""
-    scores = np.array([_score(c) for c in candidates]
-                      + [baseline.heldout_chi2_damping if candidates and candidates[0].channel == "damping"
-                         else baseline.heldout_chi2_frequency])
-    scores = np.where(np.isfinite(scores), scores, np.inf)
-    w = np.exp(-0.5 * (scores - scores.min()))
-    return float(np.sum(w[:-1][[c.effect == effect for c in candidates]]) / np.sum(w))
+    w = _weights([_score(c) for c in candidates]
+                 + [baseline.heldout_chi2_damping if candidates and candidates[0].channel == "damping"
+                    else baseline.heldout_chi2_frequency])
+    return float(np.sum(w[:-1][[c.effect == effect for c in candidates]]))
 
 
 def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
@@ -129,12 +135,9 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
         if (pair.heldout_chi2_frequency <= limit and 1.0 - pair.heldout_freq_rms_rel_error / before >= MIN_SHRINKAGE
                 and evidence >= PAIR_EVIDENCE):
-            scores = np.array([p.heldout_chi2_frequency + p.heldout_logdet for p in pairs]
-                              + [_score(c) for c in singles] + [baseline.heldout_chi2_frequency])
-            scores = np.where(np.isfinite(scores), scores, np.inf)
-            w = np.exp(-0.5 * (scores - scores.min()))
-            own = pair.heldout_chi2_frequency + pair.heldout_logdet
-            return pair, float(np.exp(-0.5 * (own - scores.min())) / np.sum(w))
+            w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
+                         + [baseline.heldout_chi2_frequency])
+            return pair, float(w[pairs.index(pair)])
     return None
 
 
@@ -171,24 +174,18 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
             if top is not None:
                 best[channel] = top
     also: list[dict] = []
+    frequency_gap = "frequency" in gaps and gaps["frequency"]["gap"]
     if "frequency" in named:
         primary, confidence = named["frequency"]
         best_hz = predictions[(primary.effect, primary.where)]
-    elif "frequency" in gaps and gaps["frequency"]["gap"] and pairs:
-        chosen = _pair_verdict(pairs, [c for c in ranking if c.channel == "frequency"], baseline, gaps["frequency"])
-        if chosen is None:
+    elif frequency_gap:
+        singles = [c for c in ranking if c.channel == "frequency"]
+        chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None
+        if chosen is None or chosen[1] <= NAME_CONFIDENCE:
             return _unexplained(best, baseline, gaps, ranking)
         pair, confidence = chosen
         primary, best_hz = pair.first, pair.predicted_hz
-        also.append({**_entry(pair.second, baseline, pair.parameters[1])})
-        if confidence <= NAME_CONFIDENCE:
-            return _unexplained(best, baseline, gaps, ranking)
-        entry = _entry(primary, baseline, pair.parameters[0])
-        if "damping" in named:
-            also.append(_entry(named["damping"][0], baseline))
-        return Verdict(primary.effect, primary.where, entry["shrinkage"], confidence, best_hz, also=also, gaps=gaps)
-    elif "frequency" in gaps and gaps["frequency"]["gap"]:
-        return _unexplained(best, baseline, gaps, ranking)
+        also.append(_entry(pair.second, baseline, pair.parameters[1]))
     elif "damping" in named:
         primary, confidence = named["damping"]
         best_hz = predictions[(primary.effect, primary.where)]

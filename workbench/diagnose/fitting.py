@@ -118,14 +118,10 @@ class Frequencies:
 
     def fit_cost(self, modes_mask: np.ndarray) -> tuple[float, np.ndarray, float]:
         """``(u, predicted means, frequency chi-square)`` fitted on the modes in ``modes_mask``."""
-        f = self.obs.frequency_hz[:, modes_mask]
         cache: dict = {}
 
-        def cost(u: float) -> float:
-            p = self.predict(u)
-            if not np.all(np.isfinite(p[:, modes_mask][~np.isnan(f)])):
-                return np.inf
-            return frequency_chi2(self.obs, p, modes_mask, cache)
+        def cost(u: float) -> float:  # inf where the curve has no value (outside its grid)
+            return frequency_chi2(self.obs, self.predict(u), modes_mask, cache)
 
         grid = np.linspace(self.lo, self.hi, SCAN_POINTS)
         costs = frequency_chi2_many(self.obs, self.predict_many(grid), modes_mask, cache)

@@ -198,9 +198,7 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     pairs: list[PairFit] = []
     if verdict.effect == UNEXPLAINED and verdict.gaps.get("frequency", {}).get("gap"):
         say("pairs of effects")
-        everything = np.ones(obs.frequency_hz.shape[1], bool)
-        starts = {key: model.fit(everything)[0] for key, model in models.items()}
-        pairs = pair_fits(ranking, models, starts, obs, baseline_hz)
+        pairs = pair_fits(ranking, models, obs, baseline_hz)
         verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs)
     counts = {name: verdict.gaps[name]["observations"] if name in verdict.gaps else 0
               for name in ("frequency", "damping")}
