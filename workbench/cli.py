@@ -1,7 +1,4 @@
-"""The ``workbench`` command line (CONTRACTS.md section 3): thin over the library.
-
-Exit status 0 on success, 2 on bad input with a one-line reason on standard error.
-"""
+"""The ``workbench`` command line (CONTRACTS.md section 3): thin over the library; exit 2 on bad input, one line."""
 
 from __future__ import annotations
 
@@ -270,12 +267,14 @@ def _demo(args: argparse.Namespace, out: OutputSet) -> str:
 def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.report.diagnosis_page import diagnosis_files
     from workbench.workflow.diagnosis import diagnose_campaign
+    from workbench.workflow.execution import mapper
 
     def say(message: str) -> None:
         print(f"diagnose: {message}", file=sys.stderr, flush=True)
 
     # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
-    done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None)
+    with mapper(args.workers, args.scheduler, _progress()) as tasks:  # the tests' circle fits
+        done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None, tasks)
     record, campaign = done.record, done.campaign
     pages = diagnosis_files(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
     out.commit({"diagnosis.json": json_text(record), **pages})  # the page and its tables as CSV, all or nothing
@@ -398,6 +397,7 @@ def _parser() -> argparse.ArgumentParser:
                 ("diagnosis.json", "index.html", *declared_files("diagnosis")))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
+    _work_options(p)
 
     _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",
                             _design, ("designs.csv", "design.csv", "campaign.toml", "index.html")))

@@ -41,8 +41,8 @@ class CampaignDiagnosis:
     record: dict[str, Any]
 
 
-def diagnose_campaign(path: str | Path, count: int | None = None,
-                      notify: Callable[[str], None] | None = None) -> CampaignDiagnosis:
+def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callable[[str], None] | None = None,
+                      mapper: Mapper | None = None) -> CampaignDiagnosis:
     """Read a campaign, diagnose its gap (`workbench.diagnose.verdict.diagnose`), make its record.
 
     Parameters
@@ -50,11 +50,12 @@ def diagnose_campaign(path: str | Path, count: int | None = None,
     path : the campaign directory (modes.csv, FRFs, or moments.csv).
     count : use at most the first ``count`` modes.
     notify : called with a short message before each stage.
+    mapper : runs the tests' circle fits (`workbench.tasks.Mapper`); default, one after the other.
     """
     campaign = load_campaign(path)
     if notify:
         notify("modes of every test (modes.csv or circle fit)")
-    measured = measured_modes(campaign, count, "diagnose")
+    measured = measured_modes(campaign, count, "diagnose", mapper)
     result = diagnose(campaign.frame, measured, notify)
     record = diagnosis_record(campaign.name, result)
     record["synthetic"] = bool(campaign.synthetic)

@@ -304,13 +304,15 @@ def _wide(campaign: Campaign, table: pd.DataFrame, column: str, count: int | Non
     return wide.reindex(campaign.test_ids)
 
 
-def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = "identify") -> MeasuredModes:
+def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = "identify",
+                   mapper: Mapper | None = None) -> MeasuredModes:
     """The campaign's measured modes: ``modes.csv``, else the circle fit of its FRFs, else its published moments.
 
     Parameters
     ----------
     count : use at most the first ``count`` modes.
     purpose : what the modes are for, in the error message when the campaign has none.
+    mapper : runs the tests' circle fits (`workbench.tasks.Mapper`); default, one after the other.
 
     Raises
     ------
@@ -321,7 +323,8 @@ def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = 
     if campaign.modes is None and campaign.frf is not None:
         # every test's circle fits (bands shared across tests; weak or poor circles left out), less
         # the modes found usable in no test
-        fitted = extract_campaign(campaign, count=count).measured_modes(source + " (modes by circle fit of its FRFs)")
+        fitted = extract_campaign(campaign, count=count, mapper=mapper).measured_modes(
+            source + " (modes by circle fit of its FRFs)")
         fitted = fitted.select(np.isfinite(fitted.frequency_hz).any(axis=0))
         return replace(fitted, amplitude=amplitude_of_tests(campaign))
     if campaign.modes is None and campaign.moments is not None:
