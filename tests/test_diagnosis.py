@@ -294,16 +294,16 @@ def test_a_damping_gap_alone_never_names_a_frequency_effect():
     shift = fit("joint_stiffness_shift", "frequency", 0.0, 400.0 * modes, 0.0, 400.0 * modes, 5e-5, 0.01)
     damping = fit("joint_damping", "damping", 0.0, 3.0, 0.0, 3.0, 1e-4, 1e-4)
     verdict = decide(obs, f.copy(), baseline, [shift, damping],
-                     {("joint_stiffness_shift", "A"): f, ("joint_damping", "A"): f})
+                     {("joint_stiffness_shift", "A", ""): f, ("joint_damping", "A", ""): f})
     assert (verdict.effect, verdict.where) == ("joint_damping", "A") and verdict.gaps["frequency"]["gap"] is False
-    verdict = decide(obs, f.copy(), baseline, [shift], {("joint_stiffness_shift", "A"): f})
+    verdict = decide(obs, f.copy(), baseline, [shift], {("joint_stiffness_shift", "A", ""): f})
     assert verdict.effect == "unexplained" and verdict.partial is None  # nothing on the channel with the gap
     # a frequency gap the best candidate only narrows (held-out error 20 % smaller, under the 30 % to
     # be named): unexplained, with it as the partial explanation
     off = f * 1.001
     weak = fit("joint_stiffness_shift", "frequency", 500.0, 0.0, 450.0, 0.0, 8e-4, 0.01)
     base_f = fit("baseline", "frequency", 800.0, 0.0, 800.0, 0.0, 1e-3, 0.01)
-    verdict = decide(obs, off, base_f, [weak], {("joint_stiffness_shift", "A"): off})
+    verdict = decide(obs, off, base_f, [weak], {("joint_stiffness_shift", "A", ""): off})
     assert verdict.effect == "unexplained"
     assert verdict.partial == {"effect": "joint_stiffness_shift", "where": "A", "shrinkage": pytest.approx(0.2)}
 
@@ -327,12 +327,13 @@ def test_two_effects_that_predict_alike_are_not_told_apart():
     base = fit("baseline", None, 600.0, 0.01)
     a, b = fit("added_mass", "beam", 4.0, 1e-4), fit("support_compliance", "base_left", 4.0, 1e-4)
     assert type_confidence([a, b], base, "added_mass") == pytest.approx(0.5)
-    verdict = decide(obs, off, base, [a, b], {("added_mass", "beam"): f, ("support_compliance", "base_left"): f})
+    predictions = {("added_mass", "beam", ""): f, ("support_compliance", "base_left", ""): f}
+    verdict = decide(obs, off, base, [a, b], predictions)
     assert verdict.confidence == pytest.approx(NAME_CONFIDENCE) and verdict.effect == "unexplained"
     assert verdict.partial is not None and verdict.partial["effect"] == "added_mass"
     # one of them clearly better: named, confident
     c = fit("support_compliance", "base_left", 14.0, 2e-4)
-    verdict = decide(obs, off, base, [a, c], {("added_mass", "beam"): f, ("support_compliance", "base_left"): f})
+    verdict = decide(obs, off, base, [a, c], predictions)
     assert verdict.effect == "added_mass" and verdict.confidence == pytest.approx(1 / (1 + np.exp(-5.0)))
 
 
@@ -376,7 +377,8 @@ def test_the_mass_screen_follows_exact_solves():
 
 def test_linear_effects_sweep_from_two_assemblies_as_from_one_per_value():
     # a joint's modulus, a support spring, an axial force: K is linear in the parameter, so the grid is
-    # interpolated between two assemblies; its frequencies equal those of a frame assembled at each value
+    # interpolated between two assemblies and solved on one Ritz basis; at every value its frequencies equal
+    # those of a frame assembled and solved there (the Ritz sweep checks only the grid's ends itself)
     from workbench.diagnose.baseline import baseline
     from workbench.diagnose.curves import sweep
     from workbench.model.structure import structure_modes
@@ -389,10 +391,74 @@ def test_linear_effects_sweep_from_two_assemblies_as_from_one_per_value():
              (AXIAL_PRESTRESS, "beam", np.linspace(-300.0, 600.0, 10), 3, {})]
     for kind, where, values, start, fixed in cases:
         curve = sweep(base, kind, where, values, start, kind is not AXIAL_PRESTRESS, fixed)
-        for i in (0, values.size - 1):
+        assert curve.values.size == values.size
+        for i in range(values.size):
             model = assemble(apply_effect(frame, Effect(kind.name, where, {kind.parameter: float(values[i])})))
             direct = np.sort(structure_modes(model, base.count).frequency_hz)
             assert np.sort(curve.frequency_hz[i]) == pytest.approx(direct, rel=1e-7), kind.name
+
+
+def test_the_ritz_sweep_follows_one_exact_solve_per_value(monkeypatch):
+    # the Ritz sweep of a linear effect (one basis, a small eigenproblem per value) against the same sweep
+    # solved exactly at every value, mode by mode as tracked: a support spring down to near pinned, a joint
+    # and every joint from a tenth to ten times their modulus, a point mass up to the frame's own mass
+    import workbench.diagnose.curves as curves
+    from workbench.diagnose.baseline import baseline
+    from workbench.rig.effects import ADDED_MASS, JOINT_STIFFNESS_SHIFT, STINGER_STIFFNESS, SUPPORT_COMPLIANCE
+
+    frame = _deterministic(REPO / "frames" / "four_bolt.toml")
+    base = baseline(frame, observations(_data(frame, Effect(), count=8)))
+    total_mass = float(assemble(frame).mass.diagonal()[0::3].sum())  # kg, the translational dofs'
+    joints = np.logspace(-1, 1, 33)
+    cases = [(SUPPORT_COMPLIANCE, "base_left", 4919.25 * np.logspace(-3, 0, 33), 32, {}),
+             (JOINT_STIFFNESS_SHIFT, "L1", joints, 16, {}), (JOINT_STIFFNESS_SHIFT, None, joints, 16, {}),
+             (ADDED_MASS, "beam", total_mass * np.logspace(-3.5, 0, 33), 0, {"position": 0.3}),
+             (STINGER_STIFFNESS, "drive", np.logspace(2, 8, 33), 0, {"dof": "ux"})]
+    used = []
+    ritz = curves._ritz_sweep
+    monkeypatch.setattr(curves, "_ritz_sweep", lambda *a: used.append(r := ritz(*a)) or r)
+    got = [curves.sweep(base, kind, where, values, start, True, fixed) for kind, where, values, start, fixed in cases]
+    monkeypatch.setattr(curves, "_ritz_sweep", lambda *a: None)
+    for (kind, where, values, start, fixed), curve in zip(cases, got):
+        exact = curves.sweep(base, kind, where, values, start, True, fixed)
+        assert curve.values.size == exact.values.size
+        assert curve.frequency_hz == pytest.approx(exact.frequency_hz, rel=1e-6), (kind.name, where)
+    assert sum(u is not None for u in used) >= 4  # the Ritz sweep was used, not its exact fallback
+
+
+def test_a_pair_is_fitted_to_the_least_chi_square_of_a_fine_scan():
+    # the pair fit's coarse grid and zooms against a brute-force scan of both parameters 50 times finer than
+    # the coarse grid, on data with a soft support and a stiffer joint at once (a pair, not a single effect)
+    from scipy.optimize import minimize
+
+    from workbench.diagnose.baseline import baseline
+    from workbench.diagnose.combined import _PairGrid
+    from workbench.diagnose.curves import sweep
+    from workbench.diagnose.fitting import Frequencies
+    from workbench.diagnose.observations import frequency_chi2, frequency_chi2_many
+    from workbench.rig.effects import JOINT_STIFFNESS_SHIFT, SUPPORT_COMPLIANCE
+
+    frame = _deterministic(ONE_BOLT)
+    article = apply_effect(frame, Effect("support_compliance", "base_left", {"rz": 2500.0}))
+    truth = replace(article, joints=tuple(replace(j, youngs_modulus=1.3 * j.youngs_modulus) for j in article.joints))
+    obs = observations(_data(truth, Effect(), count=6))
+    base = baseline(frame, obs)
+    baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
+    support = sweep(base, SUPPORT_COMPLIANCE, "base_left", 4919.25 * np.logspace(-3, 0, 33), 32, True)
+    joint = sweep(base, JOINT_STIFFNESS_SHIFT, "A", np.logspace(-1, 1, 33), 16, True)
+    grid = _PairGrid((Frequencies(base, obs, support), Frequencies(base, obs, joint)), obs, baseline_hz)
+    everything = np.ones(obs.frequency_hz.shape[1], bool)
+    u, predicted, chi2 = grid.fit(everything)
+    assert chi2 == pytest.approx(frequency_chi2(obs, predicted), rel=1e-12)
+    fine = np.linspace(0.0, 1.0, 1601)
+    best = np.inf
+    for chunk in np.array_split(fine, 16):
+        best = min(best, float(np.min(frequency_chi2_many(obs, grid.predict(chunk, fine), everything))))
+    polished = minimize(lambda x: frequency_chi2(obs, grid.predict(x[:1], x[1:])[0]),
+                        (u - grid.lo) / grid.span, method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-12})
+    assert chi2 <= best * 1.001 + 1e-9
+    assert chi2 <= polished.fun * 1.01 + 1e-6
+    assert chi2 < 0.01 * frequency_chi2(obs, baseline_hz)  # the pair explains what the baseline misses
 
 
 def test_softening_is_nil_at_the_lowest_level_and_grows_with_it():
@@ -441,3 +507,88 @@ def test_model_discrepancy_is_not_a_gap_and_an_effect_beyond_it_is():
     one_off = np.ones((n_cond, n_modes))
     one_off[:, 3] = 1.015
     assert frequency_chi2(obs, f * one_off) > chi2_law.ppf(0.99, n)
+
+
+def _directions_and_fits(obs, f, residual, directions):
+    """CandidateFit of each linear candidate ``f (1 + u v)`` fitted by least squares to ``f (1 + residual)``:
+    its in-sample chi-square is the baseline's less ``(v' W r)^2 / (v' W v)`` (closed form).
+    """
+    from workbench.diagnose.fitting import CandidateFit
+    from workbench.diagnose.observations import frequency_chi2
+
+    measured = replace(obs, frequency_hz=f * (1 + residual))
+    present, cov = measured.joint_covariance(np.ones(f.shape[1], bool))
+    w = np.linalg.inv(cov)
+    r = (f / measured.frequency_hz - 1.0)[present]
+    base = frequency_chi2(measured, f)
+    fits = []
+    for k, v in enumerate(directions):
+        x = -v[present] * f[present] / measured.frequency_hz[present]  # d(residual)/du at u = 0
+        drop = float((x @ w @ r) ** 2 / (x @ w @ x))
+        fits.append(CandidateFit(f"e{k}", None, {}, "frequency", base - drop, base - drop, base, base, 0.0,
+                                 0.0, 0.0, None, None, 1, 0.0))
+    baseline = CandidateFit("baseline", None, {}, "frequency", base, base, base, base, 0.0, 0.0, 0.0, None, None, 0,
+                            0.0)
+    return measured, baseline, fits
+
+
+def test_the_targeted_gap_test_keeps_its_level_and_sees_what_the_omnibus_test_misses():
+    # 15 candidate directions: under the discrepancy alone the targeted test (Bonferroni over the candidates)
+    # flags at most GAP_LEVEL of the campaigns; with a 3.5-sigma change along one of them it flags it as often
+    # as its closed form (non-central chi-square, one dof) says, far more often than the omnibus test does
+    from scipy.stats import chi2 as chi2_law
+    from scipy.stats import ncx2
+
+    from workbench.diagnose.decision import GAP_LEVEL, channel_gaps
+    from workbench.diagnose.observations import Discrepancy, Observations
+
+    rng = np.random.default_rng(11)
+    n_cond, n_modes, se, k = 2, 8, 5e-4, 15
+    d = Discrepancy(0.002, 0.0, 0.2)
+    f = np.tile(np.linspace(50.0, 900.0, n_modes), (n_cond, 1))
+    obs = Observations(np.array([1.0, 5.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (n_cond, 1, 1)),
+                       None, None, d)
+    directions = [np.tile(rng.standard_normal(n_modes), (n_cond, 1)) * 1e-3 for _ in range(k)]
+    _, cov = obs.joint_covariance(np.ones(n_modes, bool))
+    v0 = directions[0].ravel()
+    size = 3.5 / np.sqrt(v0 @ np.linalg.solve(cov, v0))  # 3.5 standard deviations along the first direction
+    flagged = {"null": [0, 0], "effect": [0, 0]}
+    draws = 600
+    for _ in range(draws):
+        noise = (d.mode_sd * rng.standard_normal(n_modes)[None, :] + se * rng.standard_normal((n_cond, n_modes)))
+        for case, residual in (("null", noise), ("effect", noise - size * directions[0])):
+            measured, baseline, fits = _directions_and_fits(obs, f, residual, directions)
+            gap = channel_gaps(measured, f, baseline, fits)["frequency"]
+            flagged[case][0] += gap["evidence"]["p_value"] < GAP_LEVEL
+            flagged[case][1] += gap["omnibus"]
+    n = n_cond * n_modes
+    assert flagged["null"][0] / draws <= GAP_LEVEL + 3 * np.sqrt(GAP_LEVEL / draws)
+    expected = ncx2.sf(chi2_law.isf(GAP_LEVEL / k, 1), 1, 3.5 ** 2)
+    assert flagged["effect"][0] / draws == pytest.approx(expected, abs=0.06)
+    assert flagged["effect"][1] / draws == pytest.approx(ncx2.sf(chi2_law.isf(GAP_LEVEL, n), n, 3.5 ** 2), abs=0.06)
+    assert flagged["effect"][0] > flagged["effect"][1] + 0.1 * draws
+
+
+def test_a_candidates_form_error_is_shared_by_the_excitation_levels():
+    # the form's error is one error per mode at every level: it widens a change that is the same at both
+    # levels, never a difference between the levels, which the measurement scatter alone measures
+    from workbench.diagnose.observations import Discrepancy, Observations, frequency_chi2, frequency_score
+
+    n_modes, se = 4, 1e-4
+    f = np.tile(np.linspace(100.0, 400.0, n_modes), (2, 1))
+    obs = Observations(np.array([1.0, 2.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (2, 1, 1)), None, None,
+                       Discrepancy(0.002, 0.0, 0.2))
+    reference = f * 1.05  # the candidate predicts f: -5 % on every mode at both levels, form error 0.5 %
+    split = np.ones((2, n_modes))
+    split[0, 1], split[1, 1] = 1.003, 0.997  # measured mode 2 0.3 % high at one level, low at the other
+    measured = replace(obs, frequency_hz=f * split)
+    chi2_form, logdet = frequency_score(measured, f, reference)
+    assert chi2_form == pytest.approx(frequency_chi2(measured, f), rel=1e-6)
+    same = np.ones((2, n_modes))
+    same[:, 1] = 1.003  # 0.3 % high at both levels: the form error absorbs part of it
+    measured = replace(obs, frequency_hz=f * same)
+    assert frequency_score(measured, f, reference)[0] < 0.5 * frequency_chi2(measured, f)
+    # one rank-one widening per mode (no common shift here): log det = n log(1 + e' C^-1 e), e = (x, x), so
+    # e' C^-1 e = 2 x^2 / (se^2 + 2 mode_sd^2); drawn anew per level it would be 2 n log(1 + x^2 / (se^2 ...))
+    x = 0.1 * (1 / 1.05 - 1)
+    assert logdet == pytest.approx(n_modes * np.log1p(2 * x ** 2 / (se ** 2 + 2 * 0.002 ** 2)), rel=1e-6)

@@ -60,17 +60,24 @@ def _reference_bending(frame: Frame, point: str) -> tuple[float, float]:
 
 
 def _support_curves(base: Baseline) -> list[Curve | None]:
+    """Each support's rotational spring and, where held, each translational one, softened from the file's.
+
+    A real clamp gives way in translation as well as in rotation (a bolted foot slides and rocks on its
+    plate): each held dof is one form of the support's compliance. A fixed dof starts from a stiffness far
+    above the member's (its ``EI / L`` in rotation, ``EI / L^3`` in translation, up to the axial ``EA / L``).
+    """
     frame, _ = base.planar
     curves = []
     for s in frame.supports:
-        if s.rz is None:
-            continue
-        if math.isinf(s.rz):
-            ei, length = _reference_bending(frame, s.point)
-            values = ei / length * np.logspace(-2, 3, GRID_POINTS)
-        else:
-            values = s.rz * np.logspace(-3, 0, GRID_POINTS)
-        curves.append(sweep(base, SUPPORT_COMPLIANCE, s.point, values, values.size - 1, True))
+        ei, length = _reference_bending(frame, s.point)
+        for dof, reference, decades in (("rz", ei / length, (-2, 3)), ("ux", ei / length ** 3, (-1, 6)),
+                                        ("uy", ei / length ** 3, (-1, 6))):
+            held = getattr(s, dof)
+            if held is None:
+                continue
+            values = (reference * np.logspace(*decades, GRID_POINTS) if math.isinf(held)
+                      else held * np.logspace(-3, 0, GRID_POINTS))
+            curves.append(sweep(base, SUPPORT_COMPLIANCE, s.point, values, values.size - 1, True, swept=dof))
     return curves
 
 

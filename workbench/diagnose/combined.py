@@ -15,10 +15,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from workbench.diagnose.fitting import CandidateFit, Frequencies
-from workbench.diagnose.observations import Observations, frequency_chi2, frequency_score, rms
+from workbench.diagnose.observations import Observations, frequency_chi2_many, frequency_score, rms
 
 __all__ = ["PAIR_POOL", "PairFit", "pair_fits"]
 
@@ -45,51 +44,71 @@ class PairFit:
         return self.heldout_chi2_frequency + self.heldout_logdet
 
 
-def _fit(models: tuple[Frequencies, Frequencies], start: tuple[float, float], obs: Observations,
-         baseline_hz: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(u, prediction, chi2 on mask)`` of the pair fitted on the modes in ``mask``."""
-    a, b = models
-    span = np.array([a.hi - a.lo, b.hi - b.lo])
-    lo = np.array([a.lo, b.lo])
-    cache: dict = {}
-
-    def predict(x: np.ndarray) -> np.ndarray:
-        u = lo + np.clip(x, 0.0, 1.0) * span
-        return a.predict(u[0]) + b.predict(u[1]) - baseline_hz
-
-    def cost(x: np.ndarray) -> float:
-        p = predict(x)
-        return frequency_chi2(obs, p, mask, cache) if np.all(np.isfinite(p[:, mask])) else 1e300
-
-    x0 = (np.asarray(start) - lo) / np.where(span > 0, span, 1.0)
-    res = minimize(cost, x0, method="Powell", bounds=[(0.0, 1.0), (0.0, 1.0)], options={"xtol": 1e-5, "ftol": 1e-9})
-    x = res.x if res.fun <= cost(x0) else x0
-    return lo + np.clip(x, 0.0, 1.0) * span, predict(x), float(cost(x))
+GRID = 33  # coarse values of each parameter scanned together, before the zoom
+ZOOM = 9  # values per parameter of each zoomed scan around the best point so far
+ZOOMS = 3  # zoomed scans: the last steps by 1/2048 of each parameter's range
 
 
-def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None], Frequencies], obs: Observations,
+class _PairGrid:
+    """A pair's predictions on a grid of both parameters (scaled to [0, 1]), solved once for every mode mask.
+
+    Leave-one-mode-out fits the pair once per mode; the predictions do not depend on the mask, only the
+    chi-square does, so one vectorised scan serves every fit and the zoom solves only its few new points.
+    """
+
+    def __init__(self, models: tuple[Frequencies, Frequencies], obs: Observations, baseline_hz: np.ndarray):
+        self.a, self.b = models
+        self.obs, self.baseline_hz = obs, baseline_hz
+        self.lo = np.array([self.a.lo, self.b.lo])
+        self.span = np.array([self.a.hi - self.a.lo, self.b.hi - self.b.lo])
+        self.x = np.linspace(0.0, 1.0, GRID)
+        self.coarse = self.predict(self.x, self.x)
+
+    def predict(self, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+        """(n1 * n2, n_cond, n_modes) predictions, Hz, on the grid ``x1`` x ``x2`` (scaled parameters)."""
+        p1 = self.a.predict_many(self.lo[0] + np.clip(x1, 0.0, 1.0) * self.span[0])
+        p2 = self.b.predict_many(self.lo[1] + np.clip(x2, 0.0, 1.0) * self.span[1])
+        return (p1[:, None] + p2[None, :] - self.baseline_hz).reshape(-1, *self.baseline_hz.shape)
+
+    def fit(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(u, prediction, chi2 on mask)`` of the pair fitted on the modes in ``mask``: the coarse grid's
+        best point, then `ZOOMS` grids, each over the previous grid's cells around its best point.
+        """
+        cache: dict = {}
+        costs = frequency_chi2_many(self.obs, self.coarse, mask, cache)  # inf where a curve has no value
+        i, j = divmod(int(np.argmin(costs)), GRID)
+        x, p, c = np.array([self.x[i], self.x[j]]), self.coarse[i * GRID + j], float(costs[i * GRID + j])
+        step = 1.0 / (GRID - 1)
+        for _ in range(ZOOMS):
+            x1, x2 = (x[0] + np.linspace(-step, step, ZOOM), x[1] + np.linspace(-step, step, ZOOM))
+            fine = self.predict(x1, x2)
+            fine_costs = frequency_chi2_many(self.obs, fine, mask, cache)
+            k = int(np.argmin(fine_costs))
+            if fine_costs[k] < c:
+                x, p, c = np.clip([x1[k // ZOOM], x2[k % ZOOM]], 0.0, 1.0), fine[k], float(fine_costs[k])
+            step *= 2.0 / (ZOOM - 1)
+        return self.lo + x * self.span, p, c
+
+
+def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, str], Frequencies], obs: Observations,
               baseline_hz: np.ndarray) -> list[PairFit]:
     """Every pair among the `PAIR_POOL` best frequency candidates of ``singles`` (ranked best first), fitted in
-    sample and leave one mode out, best held-out score first (`CandidateFit.heldout_score`).
-
-    ``models`` holds each candidate's `Frequencies` by ``(effect, where)``; each pair starts from its two
-    single fits on every mode.
+    sample and leave one mode out on a grid of both parameters (`_PairGrid`), best held-out score first
+    (`CandidateFit.heldout_score`). ``models`` holds each candidate's `Frequencies` by `CandidateFit.key`.
     """
-    pool = [c for c in singles if c.channel == "frequency" and (c.effect, c.where) in models][:PAIR_POOL]
+    pool = [c for c in singles if c.channel == "frequency" and c.key in models][:PAIR_POOL]
     n_modes = obs.frequency_hz.shape[1]
     everything = np.ones(n_modes, bool)
-    starts = {(c.effect, c.where): models[(c.effect, c.where)].fit(everything)[0] for c in pool}
     out = []
     for first, second in itertools.combinations(pool, 2):
-        keys = ((first.effect, first.where), (second.effect, second.where))
-        pair = (models[keys[0]], models[keys[1]])
-        start = (starts[keys[0]], starts[keys[1]])
-        u, in_hz, in_chi2 = _fit(pair, start, obs, baseline_hz, everything)
+        pair = (models[first.key], models[second.key])
+        grid = _PairGrid(pair, obs, baseline_hz)
+        u, in_hz, in_chi2 = grid.fit(everything)
         held = np.full_like(obs.frequency_hz, np.nan)
         for k in range(n_modes):
             mask = everything.copy()
             mask[k] = False
-            held[:, k] = _fit(pair, start, obs, baseline_hz, mask)[1][:, k]
+            held[:, k] = grid.fit(mask)[1][:, k]
         params = (_parameters(first, pair[0], u[0]), _parameters(second, pair[1], u[1]))
         held_chi2, held_logdet = frequency_score(obs, held, baseline_hz)
         out.append(PairFit(first, second, params, in_chi2, held_chi2, rms(in_hz / obs.frequency_hz - 1.0),

@@ -6,9 +6,12 @@ a real structure can be is not said to miss. The levels are frozen constants (fi
 the proving ground, never tuned on it):
 
 1. **A gap, channel by channel.** Frequencies have a gap when the baseline's chi-square exceeds its
-   ``1 - GAP_LEVEL`` quantile (chi-square law, one degree of freedom per mean); damping likewise, with the
-   degrees of freedom of its two fitted parameters removed. An effect is named only on a channel with a gap:
-   a damping gap never licenses a frequency effect.
+   ``1 - GAP_LEVEL`` quantile (the omnibus test: chi-square law, one degree of freedom per mean), or when
+   one candidate of the channel lowers it beyond chance (the targeted test, `_evidence`: the drop read as
+   chi-square with the candidate's parameter count, its p-value times the number of candidates below
+   ``GAP_LEVEL``); damping likewise, with the degrees of freedom of its two fitted parameters removed. The
+   omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
+   effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
 2. **Explained.** The best candidate on that channel (least held-out score, leave one mode out)
    explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
    the held-out error by at least `MIN_SHRINKAGE`.
@@ -63,8 +66,12 @@ class Verdict:
     gaps: dict = field(default_factory=dict)
 
 
-def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit) -> dict[str, dict]:
-    """Each channel's baseline chi-square, its degrees of freedom, its threshold and whether it is a gap."""
+def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit,
+                 ranking: list[CandidateFit] | None = None) -> dict[str, dict]:
+    """Each channel's gap tests (module docstring, 1): the omnibus chi-square, its degrees of freedom and
+    threshold, and the targeted test's best candidate (``evidence``: its in-sample chi-square drop and its
+    family-wise p-value); ``gap`` when either test rejects at `GAP_LEVEL`.
+    """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
     chi2_f = frequency_chi2(obs, baseline_hz)
@@ -74,9 +81,31 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
         if dof < 1:
             continue
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
-        out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "gap": bool(value > threshold),
+        evidence = _evidence([c for c in ranking or [] if c.channel == name], value, name)
+        out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "omnibus": bool(value > threshold),
+                     "evidence": evidence, "gap": bool(value > threshold or evidence["p_value"] < GAP_LEVEL),
                      "observations": n_f if name == "frequency" else n_d}
     return out
+
+
+def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str) -> dict:
+    """The targeted test of a channel: the candidate whose fit lowers the in-sample chi-square the most beyond
+    chance, each drop read as chi-square with the candidate's parameter count (Wilks), its p-value multiplied
+    by the number of candidates tried (Bonferroni, so that a search over many effects and places is not read
+    as a find). An omnibus test spreads its power over every direction the residual could take; this one
+    looks along the few the vocabulary names, so that a 1 % effect is seen where the omnibus sees chance.
+    """
+    best: dict = {"effect": None, "where": None, "chi2_drop": 0.0, "p_value": 1.0, "candidates": len(candidates)}
+    for c in candidates:
+        in_sample = c.chi2 - c.chi2_frequency if channel == "damping" else c.chi2_frequency
+        drop = baseline_chi2 - in_sample
+        if not math.isfinite(drop) or drop <= 0.0:
+            continue
+        p = min(1.0, float(chi2_law.sf(drop, max(c.parameter_count, 1))) * len(candidates))
+        if p < best["p_value"]:
+            best = {"effect": c.effect, "where": c.where, "chi2_drop": float(drop), "p_value": p,
+                    "candidates": len(candidates)}
+    return best
 
 
 def _heldout(fit: CandidateFit) -> float:
@@ -157,10 +186,10 @@ def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
 def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, ranking: list[CandidateFit],
            predictions: dict, pairs: list[PairFit] | None = None) -> Verdict:
     """The verdict (module docstring). ``ranking`` best held-out chi-square first; ``predictions`` each
-    candidate's in-sample means by ``(effect, where)``; ``pairs`` `workbench.diagnose.combined.pair_fits`'s
+    candidate's in-sample means by `CandidateFit.key`; ``pairs`` `workbench.diagnose.combined.pair_fits`'s
     (None: not computed, as when a single candidate explains the frequency gap).
     """
-    gaps = channel_gaps(obs, baseline_hz, baseline)
+    gaps = channel_gaps(obs, baseline_hz, baseline, ranking)
     if not any(g["gap"] for g in gaps.values()):
         worst = max((chi2_law.cdf(g["chi2"], g["dof"]) for g in gaps.values()), default=0.0)
         return Verdict(NONE.name, None, 0.0, float(1.0 - worst), None, gaps=gaps)
@@ -177,7 +206,7 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
     frequency_gap = "frequency" in gaps and gaps["frequency"]["gap"]
     if "frequency" in named:
         primary, confidence = named["frequency"]
-        best_hz = predictions[(primary.effect, primary.where)]
+        best_hz = predictions[primary.key]
     elif frequency_gap:
         singles = [c for c in ranking if c.channel == "frequency"]
         chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None
@@ -188,7 +217,7 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
         also.append(_entry(pair.second, baseline, pair.parameters[1]))
     elif "damping" in named:
         primary, confidence = named["damping"]
-        best_hz = predictions[(primary.effect, primary.where)]
+        best_hz = predictions[primary.key]
     else:
         return _unexplained(best, baseline, gaps, ranking)
     if "damping" in named and primary is not named["damping"][0]:

@@ -64,6 +64,14 @@ class CandidateFit:
     bic: float
     heldout_logdet: float = 0.0  # log det of the covariance widened by the form's error, over the plain one
     observations: int = 1  # means fitted (frequency and damping), for the parameters' charge
+    form: str = ""  # which of the effect's forms at this place (its swept parameter and fixed ones)
+
+    @property
+    def key(self) -> tuple[str, str | None, str]:
+        """``(effect, where, form)``: one candidate, where one effect may have several forms at one place (a
+        support's rotational and translational springs, masses at several positions along one member).
+        """
+        return self.effect, self.where, self.form
 
     @property
     def heldout_score(self) -> float:
@@ -191,7 +199,8 @@ def _held_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.n
 def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], dict], channel: str,
              fit_frequency: Callable[[np.ndarray], tuple[float, np.ndarray]] | None,
              fit_damping: Callable[[np.ndarray], tuple[np.ndarray, dict]] | None,
-             obs: Observations, baseline_hz: np.ndarray, p_count: int) -> tuple[CandidateFit, np.ndarray]:
+             obs: Observations, baseline_hz: np.ndarray, p_count: int,
+             form: str = "") -> tuple[CandidateFit, np.ndarray]:
     """In-sample fit and leave-one-mode-out predictions of one candidate.
 
     Parameters
@@ -202,6 +211,7 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
     fit_damping : `damping_fit` for a mode mask, or None when no damping was measured.
     obs : the observations; baseline_hz : (n_cond, n_measured) the baseline's means, Hz.
     p_count : number of fitted parameters, for the BIC.
+    form : which form of the effect at ``where`` (`CandidateFit.form`).
 
     Returns
     -------
@@ -234,6 +244,7 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
         n_obs += int(np.sum(~np.isnan(damping)))
     fit = CandidateFit(effect, where, params, channel, in_chi2, in_chi2_f, held_chi2_f + held_chi2_d, held_chi2_f,
                        held_chi2_d, rms(in_f / obs.frequency_hz - 1.0), rms(held_f / obs.frequency_hz - 1.0),
-                       d_rms, held_d_rms, p_count, in_chi2 + p_count * math.log(max(n_obs, 2)), held_logdet, n_obs)
+                       d_rms, held_d_rms, p_count, in_chi2 + p_count * math.log(max(n_obs, 2)), held_logdet, n_obs,
+                       form)
     return fit, in_f
 

@@ -24,7 +24,8 @@ error (`Discrepancy`), so that the diagnosis does not read an as-built tolerance
 - a candidate's **form**: an effect of the vocabulary is one parametrisation of a physical change (a
   rotational spring for a clamp, a zone's modulus for a joint), and the real mechanism distributes its change
   over the modes somewhat differently. A candidate's prediction of a mean is trusted to `FORM_SD` (10 %) of
-  the change it predicts there (`frequency_score`), on top of the errors above;
+  the change it predicts there (`frequency_score`), on top of the errors above; like the per-mode error, it is
+  one error per mode, shared by the excitation levels;
 - damping: each mode's damping ratio is modelled to `DAMPING_MODEL_SD` (20 %) of the campaign's typical
   (median) damping ratio; modal damping of a real structure scatters from mode to mode by that much whatever
   its model.
@@ -212,7 +213,8 @@ def frequency_chi2_many(obs: Observations, predicted_hz: np.ndarray, mask: np.nd
 
 def frequency_score(obs: Observations, predicted_hz: np.ndarray, reference_hz: np.ndarray) -> tuple[float, float]:
     """``(chi2, log_det)`` of a candidate's predicted means under the covariance of `frequency_chi2` plus its
-    form's error, ``(FORM_SD * (predicted / reference - 1))^2`` on each mean (module docstring).
+    form's error, ``FORM_SD * (predicted / reference - 1)`` on each mean, shared by a mode's excitation levels
+    (module docstring).
 
     ``log_det`` is ``log det C_form - log det C``: ``chi2 + log_det`` is minus twice the Gaussian log density up
     to a constant shared by every candidate, so that a candidate does not gain by predicting large changes.
@@ -223,7 +225,11 @@ def frequency_score(obs: Observations, predicted_hz: np.ndarray, reference_hz: n
     r = (predicted_hz / obs.frequency_hz - 1.0)[present]
     if not (np.all(np.isfinite(r)) and np.all(np.isfinite(extra))):
         return float("inf"), 0.0
-    widened = cov + np.diag(extra ** 2)
+    # the form's error is the model's, as the per-mode discrepancy is: one error per mode, the same at every
+    # excitation level (scaled by that level's change). Drawn anew per level, it would widen the differences
+    # between levels, which only the measurement scatter limits, and its log det would swamp the score.
+    mode = np.nonzero(present)[1]
+    widened = cov + np.outer(extra, extra) * (mode[:, None] == mode[None, :])
     chi2 = float(r @ np.linalg.solve(widened, r))
     return chi2, float(np.linalg.slogdet(widened)[1] - np.linalg.slogdet(cov)[1])
 

@@ -12,7 +12,7 @@ CONTRACTS.md section 3 (the registry `workbench.rig.effects`), in stages:
 - **Where** (`workbench.diagnose.localise`): regions scored by the share of the residual a change
   of their stiffness, mass or damping explains.
 - **Which** (`workbench.diagnose.candidates`, `workbench.diagnose.curves`): each candidate effect
-  of the registry, at each place it can sit, with one parameter (a support's rotational stiffness,
+  of the registry, at each place it can sit, with one parameter (a support's rotational or translational stiffness,
   a mass, a shear coefficient, a stinger stiffness, an axial force, a joint's modulus factor, a
   softening slope, a joint loss factor); added masses also choose their position along a member.
 - **Held-out protocol** (`workbench.diagnose.fitting`): leave one mode out; candidates ranked by
@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from workbench.diagnose.baseline import Baseline, baseline
 from workbench.diagnose.candidates import frame_curves
@@ -108,19 +109,19 @@ def _parameter_count(curve: Curve) -> int:
 
 def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], baseline_hz: np.ndarray,
                     fit_base_damping: DampingFit | None, joint_share: np.ndarray) -> tuple[
-                        list[CandidateFit], dict[tuple[str, str | None], np.ndarray], dict[tuple[str, str | None],
-                                                                                            Frequencies]]:
+                        list[CandidateFit], dict[tuple[str, str | None, str], np.ndarray],
+                        dict[tuple[str, str | None, str], Frequencies]]:
     """Every candidate fitted, ranked by held-out chi-square then BIC, their in-sample predictions and, for
-    the frequency candidates, their models, all by ``(effect, where)``.
+    the frequency candidates, their models, all by `CandidateFit.key`.
     """
     ranking, predictions, models = [], {}, {}
     for curve in curves:
         model = Frequencies(base, obs, curve)
         fit, in_f = evaluate(curve.effect, curve.where, curve.parameters, EFFECTS[curve.effect].channel,
-                             model.fit, fit_base_damping, obs, baseline_hz, _parameter_count(curve))
+                             model.fit, fit_base_damping, obs, baseline_hz, _parameter_count(curve), curve.form)
         ranking.append(fit)
-        predictions[(fit.effect, fit.where)] = in_f
-        models[(fit.effect, fit.where)] = model
+        predictions[fit.key] = in_f
+        models[fit.key] = model
     slope = AMPLITUDE_SOFTENING.fitted_parameter
     if obs.amplitude.size > 1:  # softening: a joint's stiffness curve read at gamma(a) = 1 - slope * a
         for curve in curves:
@@ -130,14 +131,14 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
             fit, in_f = evaluate(AMPLITUDE_SOFTENING.name, curve.where, lambda u: {slope: float(u)},
                                  AMPLITUDE_SOFTENING.channel, model.fit, fit_base_damping, obs, baseline_hz, 1)
             ranking.append(fit)
-            predictions[(fit.effect, fit.where)] = in_f
-            models[(fit.effect, fit.where)] = model
+            predictions[fit.key] = in_f
+            models[fit.key] = model
     if obs.damping is not None:
         for j, joint in enumerate(base.frame.joint_names):
             fit, _ = evaluate(JOINT_DAMPING.name, joint, lambda u: {}, JOINT_DAMPING.channel, None,
                               partial(damping_fit, obs, joint_share[j]), obs, baseline_hz, 1)
             ranking.append(fit)
-            predictions[(fit.effect, fit.where)] = baseline_hz
+            predictions[fit.key] = baseline_hz
     ranking.sort(key=lambda c: (c.heldout_score, c.bic))
     return ranking, predictions, models
 
@@ -158,8 +159,11 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     -------
     Diagnosis
     """
-    # a mode missing at one excitation level, or left unpaired, is NaN there by design: its means are empty
-    with warnings.catch_warnings():
+    # a mode missing at one excitation level, or left unpaired, is NaN there by design: its means are empty.
+    # One BLAS thread: every matrix here is small (a few hundred dofs, reduced bases of tens), where threads
+    # cost more than they give (a diagnosis took 3.2 s with two, 1.3 s with one, and 13 s as one of two
+    # processes sharing two cores)
+    with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
         return _diagnose(frame, measured, say=notify or (lambda message: None), relative_floor=relative_floor,
                          damping_floor=damping_floor)
@@ -209,7 +213,7 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
 
 
 def _ranking_entry(c: CandidateFit) -> dict:
-    return {"effect": c.effect, "where": c.where, "parameters": c.parameters,
+    return {"effect": c.effect, "where": c.where, "parameters": c.parameters, "form": c.form,
             "freq_rms_rel_error": c.freq_rms_rel_error, "heldout_freq_rms_rel_error": c.heldout_freq_rms_rel_error,
             "damping_rms_error": c.damping_rms_error, "heldout_damping_rms_error": c.heldout_damping_rms_error,
             "chi2": c.chi2, "heldout_chi2": c.heldout_chi2, "heldout_score": c.heldout_score, "bic": c.bic,

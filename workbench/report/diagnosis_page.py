@@ -142,8 +142,18 @@ def _discrepancy_text(record: dict) -> str:
 def _gaps_text(record: dict) -> str:
     gaps = record.get("gaps") or {}
     parts = [f"{name}: chi-square {g['chi2']:.3g} against {g['threshold']:.3g} allowed"
-             f" ({'a gap' if g['gap'] else 'within the errors'})" for name, g in gaps.items()]
+             f"{_evidence_text(g.get('evidence'))} ({'a gap' if g['gap'] else 'within the errors'})"
+             for name, g in gaps.items()]
     return "; ".join(parts) or "not tested"
+
+
+def _evidence_text(evidence: dict | None) -> str:
+    """The targeted test's best candidate (`workbench.diagnose.decision`), when one lowers the chi-square."""
+    if not evidence or not evidence.get("effect"):
+        return ""
+    where = f" at {evidence['where']}" if evidence.get("where") else ""
+    return (f", {evidence['effect']}{where} lowers it by {evidence['chi2_drop']:.3g} (p = {evidence['p_value']:.2g} "
+            f"over {evidence['candidates']} candidates)")
 
 
 def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]:
