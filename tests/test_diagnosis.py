@@ -337,6 +337,36 @@ def test_two_effects_that_predict_alike_are_not_told_apart():
     assert verdict.effect == "added_mass" and verdict.confidence == pytest.approx(1 / (1 + np.exp(-5.0)))
 
 
+def test_a_pair_that_explains_is_named_with_its_own_shrinkage():
+    # neither effect alone explains a frequency gap, together they do: the first is the verdict, the second
+    # `also`, and the shrinkage is the pair's (the first alone even widens the held-out error here)
+    from workbench.diagnose.combined import PairFit
+    from workbench.diagnose.decision import decide
+    from workbench.diagnose.fitting import CandidateFit
+    from workbench.diagnose.observations import Discrepancy, Observations
+
+    modes = 6
+    f = np.full((1, modes), 100.0)
+    obs = Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-6, (1, 1, 1)),
+                       None, None, Discrepancy(0.0, 0.0, 0.0))
+
+    def fit(effect, where, held, rms):
+        return CandidateFit(effect, where, {}, "frequency", held, held, held, held, 0.0, rms, rms, None, None, 1, held)
+
+    off = f * 1.01
+    base = fit("baseline", None, 600.0, 0.01)
+    a, b = fit("added_mass", "beam", 300.0, 0.011), fit("support_compliance", "base_left", 250.0, 0.008)
+    pair = PairFit(a, b, ({"mass": 0.1}, {"rz": 1e4}), 3.0, 5.0, 1e-3, 1e-3, f)
+    verdict = decide(obs, off, base, [b, a], {a.key: off, b.key: off}, [pair])
+    assert (verdict.effect, verdict.where) == ("added_mass", "beam")
+    assert [(x["effect"], x["where"], x["parameters"]) for x in verdict.also] == [
+        ("support_compliance", "base_left", {"rz": 1e4})]
+    assert verdict.shrinkage == pytest.approx(0.9) and verdict.confidence > 0.99
+    # a pair whose second effect adds little (in-sample chi-square down by less than PAIR_EVIDENCE): not named
+    weak = PairFit(a, b, ({"mass": 0.1}, {"rz": 1e4}), 247.0, 5.0, 1e-3, 1e-3, f)
+    assert decide(obs, off, base, [b, a], {a.key: off, b.key: off}, [weak]).effect == "unexplained"
+
+
 def test_a_mode_the_campaign_missed_does_not_shift_the_pairing():
     # the sensors missed the model's fourth mode: the measured modes above it pair with their own model
     # modes (the model is solved over the whole band), not one mode down

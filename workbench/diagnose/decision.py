@@ -206,7 +206,7 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
     frequency_gap = "frequency" in gaps and gaps["frequency"]["gap"]
     if "frequency" in named:
         primary, confidence = named["frequency"]
-        best_hz = predictions[primary.key]
+        best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
     elif frequency_gap:
         singles = [c for c in ranking if c.channel == "frequency"]
         chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None
@@ -214,16 +214,17 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
             return _unexplained(best, baseline, gaps, ranking)
         pair, confidence = chosen
         primary, best_hz = pair.first, pair.predicted_hz
+        # the pair's shrinkage, not its first effect's alone (which may even widen the error)
+        shrinkage = 1.0 - pair.heldout_freq_rms_rel_error / baseline.heldout_freq_rms_rel_error
         also.append(_entry(pair.second, baseline, pair.parameters[1]))
     elif "damping" in named:
         primary, confidence = named["damping"]
-        best_hz = predictions[primary.key]
+        best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
     else:
         return _unexplained(best, baseline, gaps, ranking)
     if "damping" in named and primary is not named["damping"][0]:
         also.append(_entry(named["damping"][0], baseline))
-    return Verdict(primary.effect, primary.where, _shrinkage(primary, baseline), confidence, best_hz, also=also,
-                   gaps=gaps)
+    return Verdict(primary.effect, primary.where, shrinkage, confidence, best_hz, also=also, gaps=gaps)
 
 
 def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: dict,
