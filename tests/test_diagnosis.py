@@ -367,6 +367,27 @@ def test_a_pair_that_explains_is_named_with_its_own_shrinkage():
     assert decide(obs, off, base, [b, a], {a.key: off, b.key: off}, [weak]).effect == "unexplained"
 
 
+def test_the_scatter_a_design_puts_between_tests_is_not_read_as_chance():
+    # two tightening levels move every mode by about 1 % by design; about the design the tests scatter by
+    # 0.05 %: the per-mode allowance is the floor, not the designed spread, and the means' errors follow
+    rng = np.random.default_rng(3)
+    frame = _deterministic(TWO_BOLT)
+    f0 = model_modes(assemble(frame), 6).frequency_hz
+    level = np.tile([0.0, 1.0], 6)
+    pattern = 0.01 * np.linspace(1.0, 0.3, 6)
+    f = f0 * (1 + level[:, None] * pattern) * (1 + 5e-4 * rng.standard_normal((12, 6)))
+    plain = observations(MeasuredModes(f))
+    designed = observations(MeasuredModes(f, design=level[:, None]))
+    assert plain.discrepancy.mode_sd > 0.003
+    assert designed.discrepancy.mode_sd == pytest.approx(0.002)  # MODEL_FLOOR: the chance scatter is 0.05 %
+    se = designed.frequency_se[0] / designed.frequency_hz[0]
+    expected = np.sqrt((5e-4) ** 2 / 12 + 1e-4 ** 2)  # the chance scatter of a mean, and the relative floor
+    assert np.sqrt(np.mean(se ** 2)) == pytest.approx(expected, rel=0.3)
+    assert np.all(plain.frequency_se[0] / plain.frequency_hz[0] > 3 * se)
+    with pytest.raises(ValueError, match="design"):
+        MeasuredModes(f, design=level[:5, None])
+
+
 def test_a_mode_the_campaign_missed_does_not_shift_the_pairing():
     # the sensors missed the model's fourth mode: the measured modes above it pair with their own model
     # modes (the model is solved over the whole band), not one mode down

@@ -20,7 +20,9 @@ error (`Discrepancy`), so that the diagnosis does not read an as-built tolerance
   levels (amplitude softening) is still measured against the scatter alone. It is the larger of
   `MODEL_FLOOR` (0.2 %: section tolerances of a machined frame move bending modes by that much) and the
   campaign's own relative test-to-test scatter: a structure that moves by ``s`` between two mountings is not
-  known, as built, to better than ``s``;
+  known, as built, to better than ``s``. The scatter is taken about the campaign's design (the amplitude line
+  and the levels of its other factors, `MeasuredModes.design`): bolts tightened differently on purpose move
+  the modes by design, not by chance;
 - a candidate's **form**: an effect of the vocabulary is one parametrisation of a physical change (a
   rotational spring for a clamp, a zone's modulus for a joint), and the real mechanism distributes its change
   over the modes somewhat differently. A candidate's prediction of a mean is trusted to `FORM_SD` (10 %) of
@@ -95,11 +97,15 @@ class Observations:
         return present, cov
 
 
-def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Covariance across modes of one test's relative deviation from the amplitude line, and which
-    modes have a degree of freedom left to estimate it.
+def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarray,
+                     designed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance across modes of one test's relative deviation from the amplitude line (plus the designed
+    factors' levels, ``designed``: `MeasuredModes.design`), and which modes have a degree of freedom left to
+    estimate it.
     """
     design = np.stack([np.ones_like(amplitude), amplitude], axis=1) if levels.size > 1 else np.ones((amplitude.size, 1))
+    if designed is not None:  # a test that differs by design from another does not scatter from it by chance
+        design = np.hstack([design, designed])
     deviation = np.zeros_like(values)
     dof = np.zeros(values.shape[1])
     for k in range(values.shape[1]):
@@ -119,7 +125,8 @@ def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarr
 
 
 def _condition_means(values: np.ndarray, amplitude: np.ndarray, floor_rel: float, published_std: np.ndarray | None,
-                     tests_count: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                     tests_count: int | None, designed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray,
+                                                                                          np.ndarray, np.ndarray]:
     """Condition means, their standard errors and the relative covariance of each condition's means.
 
     The tests' deviations from a straight line in amplitude (a mean with one condition) give the
@@ -135,7 +142,7 @@ def _condition_means(values: np.ndarray, amplitude: np.ndarray, floor_rel: float
     levels = np.unique(amplitude)
     means = np.array([np.nanmean(np.where((amplitude == a)[:, None], values, np.nan), axis=0) for a in levels])
     counts = np.array([np.sum(~np.isnan(values[amplitude == a]), axis=0) for a in levels])
-    covariance, usable = _test_covariance(values, amplitude, levels)
+    covariance, usable = _test_covariance(values, amplitude, levels, designed)
     if published_std is not None:  # published means: their std, no correlation known
         rel = np.asarray(published_std, float) / np.nanmean(values, axis=0)
         covariance = np.where(np.diag(usable), covariance, np.diag(rel ** 2))
@@ -162,18 +169,22 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
     n_tests = measured.frequency_hz.shape[0]
     amplitude = measured.amplitude if measured.amplitude is not None else np.ones(n_tests)
     levels = np.unique(amplitude)
-    if measured.published_std_hz is None and not _test_covariance(measured.frequency_hz, amplitude, levels)[1].any():
+    designed = measured.design
+    if designed is not None and not _test_covariance(measured.frequency_hz, amplitude, levels, designed)[1].any():
+        designed = None  # one test per design cell: the scatter across cells is all the campaign can tell
+    if measured.published_std_hz is None and not _test_covariance(measured.frequency_hz, amplitude, levels,
+                                                                  designed)[1].any():
         # with the floor alone as the error, any model error reads as a gap far beyond scatter
         raise ValueError(f"{measured.source}: tests: {n_tests} test(s) over {levels.size} excitation level(s) leave "
                          "no degree of freedom to measure the test-to-test scatter, so a gap cannot be told from "
                          "chance; diagnose needs a repeated test (or std_hz in moments.csv)")
     levels, f, f_se, f_cov = _condition_means(measured.frequency_hz, amplitude, relative_floor,
-                                              measured.published_std_hz, measured.tests_count)
+                                              measured.published_std_hz, measured.tests_count, designed)
     d = d_se = None
     if measured.damping_ratio is not None:
-        _, d, d_se, _ = _condition_means(measured.damping_ratio, amplitude, damping_floor, None, None)
+        _, d, d_se, _ = _condition_means(measured.damping_ratio, amplitude, damping_floor, None, None, designed)
     if discrepancy is None:
-        covariance, usable = _test_covariance(measured.frequency_hz, amplitude, levels)
+        covariance, usable = _test_covariance(measured.frequency_hz, amplitude, levels, designed)
         scatter = float(np.sqrt(np.mean(np.diag(covariance)[usable]))) if usable.any() else 0.0
         if measured.published_std_hz is not None:
             scatter = float(np.sqrt(np.nanmean((np.asarray(measured.published_std_hz) / np.nanmean(

@@ -46,6 +46,8 @@ class MeasuredModes:
     sensors : the names of ``modal_constants``' sensors, in its order; empty when they are the model's
         sensors in the file's order.
     source : where the numbers come from, for messages.
+    design : (n_tests, n_columns) the tests' designed factors other than the amplitude, coded 0/1 per level
+        but each factor's first, or None: the scatter the design puts between tests is not chance.
     """
 
     frequency_hz: np.ndarray
@@ -61,6 +63,7 @@ class MeasuredModes:
     modal_constants: np.ndarray | None = field(default=None, repr=False)
     sensors: tuple[str, ...] = ()
     source: str = ""
+    design: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         where = f"{self.source}: " if self.source else ""
@@ -84,6 +87,11 @@ class MeasuredModes:
         object.__setattr__(self, "damping_ratio", None if d is None or np.all(np.isnan(d)) else d)
         for name in ("frequency_scatter_hz", "damping_scatter", "modal_constants"):
             object.__setattr__(self, name, _table(getattr(self, name), f.shape, where + name))
+        if self.design is not None:
+            design = np.asarray(self.design, float)
+            if design.ndim != 2 or design.shape[0] != n_rows or not np.all(np.isfinite(design)):
+                raise ValueError(f"{where}design: expected {n_rows} rows of finite numbers, got shape {design.shape}")
+            object.__setattr__(self, "design", design)
         if self.sensors and self.modal_constants is not None and len(self.sensors) != self.modal_constants.shape[-1]:
             raise ValueError(f"{where}sensors: {len(self.sensors)} names for {self.modal_constants.shape[-1]} "
                              "sensors of modal constants")

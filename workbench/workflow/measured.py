@@ -326,7 +326,7 @@ def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = 
         fitted = extract_campaign(campaign, count=count, mapper=mapper).measured_modes(
             source + " (modes by circle fit of its FRFs)")
         fitted = fitted.select(np.isfinite(fitted.frequency_hz).any(axis=0))
-        return replace(fitted, amplitude=amplitude_of_tests(campaign))
+        return replace(fitted, amplitude=amplitude_of_tests(campaign), design=_design_columns(campaign))
     if campaign.modes is None and campaign.moments is not None:
         m = campaign.moments.sort_values("mode")
         if count is not None:
@@ -340,5 +340,19 @@ def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = 
     wide = _wide(campaign, table, "frequency_hz", count)
     damping = _wide(campaign, table, "damping_ratio", count).to_numpy(float) if "damping_ratio" in table else None
     return MeasuredModes(wide.to_numpy(float), modes=wide.columns.to_numpy(), damping_ratio=damping,
-                         tests=tuple(wide.index), amplitude=amplitude_of_tests(campaign), source=source)
+                         tests=tuple(wide.index), amplitude=amplitude_of_tests(campaign), source=source,
+                         design=_design_columns(campaign))
+
+
+def _design_columns(campaign: Campaign) -> np.ndarray | None:
+    """(n_tests, n_columns) the campaign's designed factors other than the amplitude, in test order: each
+    factor's levels but its first as 0/1 columns (`MeasuredModes.design`); None without such factors.
+    """
+    factors = [f for f in campaign.factors if f.kind != "amplitude"]
+    if not factors or campaign.design is None:
+        return None
+    table = campaign.design.set_index("test_id").reindex(campaign.test_ids)
+    columns = np.hstack([pd.get_dummies(table[f.name].astype(str), drop_first=True).to_numpy(float)
+                         for f in factors])
+    return columns if columns.shape[1] else None
 
