@@ -308,20 +308,29 @@ def test_a_damping_gap_alone_never_names_a_frequency_effect():
     assert verdict.partial == {"effect": "joint_stiffness_shift", "where": "A", "shrinkage": pytest.approx(0.2)}
 
 
+def _flat_observations(modes):
+    """One condition of ``modes`` modes at 100 Hz, measured to 1e-3 relative, no model discrepancy."""
+    from workbench.diagnose.observations import Discrepancy, Observations
+
+    f = np.full((1, modes), 100.0)
+    return f, Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-6, (1, 1, 1)),
+                           None, None, Discrepancy(0.0, 0.0, 0.0))
+
+
+def _frequency_fit(effect, where, held, rms):
+    """A frequency candidate whose in-sample and held-out chi-squares are ``held``, RMS errors ``rms``."""
+    from workbench.diagnose.fitting import CandidateFit
+
+    return CandidateFit(effect, where, {}, "frequency", held, held, held, held, 0.0, rms, rms, None, None, 1, held)
+
+
 def test_two_effects_that_predict_alike_are_not_told_apart():
     # confidence is the pseudo-BMA weight of the named effect type: two different effects with the same
     # held-out chi-square share it, so neither is named (the gap is real and both explain it)
     from workbench.diagnose.decision import NAME_CONFIDENCE, decide, type_confidence
-    from workbench.diagnose.fitting import CandidateFit
-    from workbench.diagnose.observations import Discrepancy, Observations
 
-    modes = 6
-    f = np.full((1, modes), 100.0)
-    obs = Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-6, (1, 1, 1)),
-                       None, None, Discrepancy(0.0, 0.0, 0.0))
-
-    def fit(effect, where, held, rms):
-        return CandidateFit(effect, where, {}, "frequency", held, held, held, held, 0.0, rms, rms, None, None, 1, held)
+    f, obs = _flat_observations(6)
+    fit = _frequency_fit
 
     off = f * 1.01
     base = fit("baseline", None, 600.0, 0.01)
@@ -342,16 +351,9 @@ def test_a_pair_that_explains_is_named_with_its_own_shrinkage():
     # `also`, and the shrinkage is the pair's (the first alone even widens the held-out error here)
     from workbench.diagnose.combined import PairFit
     from workbench.diagnose.decision import decide
-    from workbench.diagnose.fitting import CandidateFit
-    from workbench.diagnose.observations import Discrepancy, Observations
 
-    modes = 6
-    f = np.full((1, modes), 100.0)
-    obs = Observations(np.array([1.0]), f, np.full((1, modes), 0.01), np.tile(np.eye(modes) * 1e-6, (1, 1, 1)),
-                       None, None, Discrepancy(0.0, 0.0, 0.0))
-
-    def fit(effect, where, held, rms):
-        return CandidateFit(effect, where, {}, "frequency", held, held, held, held, 0.0, rms, rms, None, None, 1, held)
+    f, obs = _flat_observations(6)
+    fit = _frequency_fit
 
     off = f * 1.01
     base = fit("baseline", None, 600.0, 0.01)
