@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import REPO, error_lines, run_cli
+from conftest import REPO, error_lines, run_cli, shared_path
 
 distributed = pytest.importorskip("distributed")
 
@@ -101,6 +101,23 @@ def test_validation_cases_are_the_same_with_and_without_a_scheduler(tmp_path, cl
         rows = (tmp_path / name / "cases.csv").read_text().splitlines()
         outputs.append([row.rsplit(",", 1)[0] for row in rows])  # all but the wall time
     assert outputs[0] == outputs[1]
+
+
+@pytest.mark.slow
+def test_diagnose_gives_the_same_record_serially_and_on_a_scheduler(tmp_path, cluster):
+    """`workbench diagnose` with its circle fits handed to a running scheduler: the same diagnosis.json (but
+    its wall time) as in this process, on the campaign another program wrote (../shared/examples)."""
+    import json
+
+    campaign = shared_path("examples", "independent-two-test-campaign")
+    records = []
+    for name, extra in (("serial", ()), ("remote", ("--scheduler", cluster.scheduler_address))):
+        code, err = run_cli(["diagnose", str(campaign), "--out", str(tmp_path / name), *extra])
+        assert code == 0, err
+        record = json.loads((tmp_path / name / "diagnosis.json").read_text())
+        record.pop("wall_time_s")
+        records.append(record)
+    assert records[0] == records[1] and records[0]["ranking"]
 
 
 @pytest.mark.slow

@@ -154,11 +154,14 @@ def _ritz_sweep(line: _Line, values: np.ndarray, start: int, count: int) -> np.n
     basis, _ = np.linalg.qr(np.hstack(blocks))
     reduced = [basis.T @ (a @ basis) for a in (line.k0, line.m0, line.dk, line.dm)]
 
+    def reduced_at(v: float) -> tuple[np.ndarray, np.ndarray]:
+        k, m = reduced[0] + (v - line.v0) * reduced[2], reduced[1] + (v - line.v0) * reduced[3]
+        return 0.5 * (k + k.T), 0.5 * (m + m.T)
+
     def solve(v: float) -> Modes:
-        k = reduced[0] + (v - line.v0) * reduced[2]
-        m = reduced[1] + (v - line.v0) * reduced[3]
-        w, y = sla.eigh(0.5 * (k + k.T), 0.5 * (m + m.T), subset_by_index=[0, count + 1])
-        return Modes(w, basis @ y)
+        """Modes in the basis' coordinates: their MAC in the reduced mass is the full one (V' M V = M_r)."""
+        w, y = sla.eigh(*reduced_at(v), subset_by_index=[0, count + 1])
+        return Modes(w, y)
 
     out = np.full((values.size, count), np.nan)
     first = solve(values[start])
@@ -172,8 +175,7 @@ def _ritz_sweep(line: _Line, values: np.ndarray, start: int, count: int) -> np.n
             modes = solve(values[i])
             if modes.eigenvalues[0] <= 0.0:  # buckled: the grid ends here, as for exact solves
                 break
-            mass = line(values[i])[1]
-            index, _ = track_modes(previous, modes, mass)
+            index, _ = track_modes(previous, modes, reduced_at(values[i])[1])
             previous = Modes(modes.eigenvalues[index], modes.shapes[:, index])
             out[i] = previous.frequency_hz
             i += direction

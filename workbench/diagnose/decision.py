@@ -129,6 +129,11 @@ def _shrinkage(fit: CandidateFit, baseline: CandidateFit) -> float:
     return 1.0 - fit.heldout_freq_rms_rel_error / baseline.heldout_freq_rms_rel_error
 
 
+def _pair_shrinkage(pair: PairFit, baseline: CandidateFit) -> float:
+    """`_shrinkage` of two effects fitted together (frequencies)."""
+    return 1.0 - pair.heldout_freq_rms_rel_error / baseline.heldout_freq_rms_rel_error
+
+
 def _weights(scores: list[float]) -> np.ndarray:
     """Pseudo-BMA weights ``exp(-score / 2)``, normalised; a non-finite score weighs nothing."""
     s = np.array(scores, float)
@@ -159,10 +164,9 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
                   gap: dict) -> tuple[PairFit, float] | None:
     """The best pair that explains the frequency gap (module docstring), with its weight among singles and pairs."""
     limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
-    before = baseline.heldout_freq_rms_rel_error
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
-        if (pair.heldout_chi2_frequency <= limit and 1.0 - pair.heldout_freq_rms_rel_error / before >= MIN_SHRINKAGE
+        if (pair.heldout_chi2_frequency <= limit and _pair_shrinkage(pair, baseline) >= MIN_SHRINKAGE
                 and evidence >= PAIR_EVIDENCE):
             w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
                          + [baseline.heldout_chi2_frequency])
@@ -214,8 +218,7 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
             return _unexplained(best, baseline, gaps, ranking)
         pair, confidence = chosen
         primary, best_hz = pair.first, pair.predicted_hz
-        # the pair's shrinkage, not its first effect's alone (which may even widen the error)
-        shrinkage = 1.0 - pair.heldout_freq_rms_rel_error / baseline.heldout_freq_rms_rel_error
+        shrinkage = _pair_shrinkage(pair, baseline)  # the pair's, not its first effect's alone
         also.append(_entry(pair.second, baseline, pair.parameters[1]))
     elif "damping" in named:
         primary, confidence = named["damping"]

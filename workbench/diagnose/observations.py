@@ -170,10 +170,11 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
     amplitude = measured.amplitude if measured.amplitude is not None else np.ones(n_tests)
     levels = np.unique(amplitude)
     designed = measured.design
-    if designed is not None and not _test_covariance(measured.frequency_hz, amplitude, levels, designed)[1].any():
+    covariance, usable = _test_covariance(measured.frequency_hz, amplitude, levels, designed)
+    if designed is not None and not usable.any():
         designed = None  # one test per design cell: the scatter across cells is all the campaign can tell
-    if measured.published_std_hz is None and not _test_covariance(measured.frequency_hz, amplitude, levels,
-                                                                  designed)[1].any():
+        covariance, usable = _test_covariance(measured.frequency_hz, amplitude, levels)
+    if measured.published_std_hz is None and not usable.any():
         # with the floor alone as the error, any model error reads as a gap far beyond scatter
         raise ValueError(f"{measured.source}: tests: {n_tests} test(s) over {levels.size} excitation level(s) leave "
                          "no degree of freedom to measure the test-to-test scatter, so a gap cannot be told from "
@@ -184,7 +185,6 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
     if measured.damping_ratio is not None:
         _, d, d_se, _ = _condition_means(measured.damping_ratio, amplitude, damping_floor, None, None, designed)
     if discrepancy is None:
-        covariance, usable = _test_covariance(measured.frequency_hz, amplitude, levels, designed)
         scatter = float(np.sqrt(np.mean(np.diag(covariance)[usable]))) if usable.any() else 0.0
         if measured.published_std_hz is not None:
             scatter = float(np.sqrt(np.nanmean((np.asarray(measured.published_std_hz) / np.nanmean(
