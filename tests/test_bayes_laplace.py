@@ -151,16 +151,19 @@ def test_the_log_likelihood_is_smooth_between_posterior_points_and_its_newton_se
 
 
 @pytest.mark.parametrize("shape", [(6, 4), (2, 5)])
-@pytest.mark.parametrize("terms", [ErrorTerms(True, True), ErrorTerms(True, False), ErrorTerms(False, True),
-                                   ErrorTerms(False, False)])
+@pytest.mark.parametrize("terms", [ErrorTerms(True, True, True), ErrorTerms(True, True), ErrorTerms(True, False),
+                                   ErrorTerms(False, True, True), ErrorTerms(False, False)])
 def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shape):
     # More joints than modes (the Woodbury path) and fewer (the direct path), one mode missing in one
     # test: both steps against the whole latent system assembled densely, its Jacobian by finite
-    # differences of the forward model and its gradient by finite differences of the log integrand
-    from workbench.identify.laplace import LaplaceLikelihood, _gauss_newton_step, _Latent, _solve
+    # differences of the forward model written out here (the joint energies scaled by exp(eps_k) with
+    # the sensitivity term) and its gradient by finite differences of the log integrand
+    from workbench.identify.laplace import LaplaceLikelihood, _Latent
+    from workbench.identify.laplace_steps import direct_step, gauss_newton_step
 
     rng = np.random.default_rng(3)
     (r, k), tests, p = shape, 3, shape[0] + terms.common
+    shared = k * (1 + (terms.discrepancy and terms.sensitivity)) if terms.discrepancy else 0
     forward = AnchoredForward(0.1 * rng.standard_normal((tests, r)), rng.uniform(1e6, 4e6, (tests, k)),
                               rng.uniform(1e4, 2e5, (tests, k, r)))
     f_obs = forward(forward.anchor) * (1 + 0.003 * rng.standard_normal((tests, k)))
@@ -173,20 +176,24 @@ def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shap
     pop, _ = lm._population(theta[None])
     x = _Latent(forward.anchor[None] + 0.05 * rng.standard_normal((1, tests, r)),
                 0.002 * rng.standard_normal((1, tests)) * terms.common,
-                0.002 * rng.standard_normal((1, k)) * terms.discrepancy)
+                0.02 * rng.standard_normal((1, max(shared, k))) * terms.discrepancy)
     local = lm._evaluate(pop, x, grad=True)
-    fast = _gauss_newton_step(local, pop)
-    direct = _solve(local, *lm._hessian(local, pop, exact=False), pop.inv_d)
+    diagonal = np.concatenate([local.e, np.full(local.e.shape[:-1] + (1,), pop.inv_u[0, 0])], axis=-1) \
+        if terms.common else local.e
+    fast = gauss_newton_step(local, pop.w, diagonal, pop.inv_d)
+    direct = direct_step(local, *lm._hessian(local, pop, exact=False), pop.inv_d)
 
-    def unpack(xi):  # the dense system's latents: (z_t, u_t) per test, then delta
+    def unpack(xi):  # the dense system's latents: (z_t, u_t) per test, then delta (and eps)
         blocks = xi[:tests * p].reshape(tests, p)
         u = blocks[:, r] if terms.common else np.zeros(tests)
-        delta = xi[tests * p:] if terms.discrepancy else np.zeros(k)
-        return _Latent(blocks[None, :, :r], u[None], delta[None])
+        s = xi[tests * p:] if terms.discrepancy else np.zeros(k)
+        return _Latent(blocks[None, :, :r], u[None], s[None])
 
     def model_f(xi):
         at = unpack(xi)
-        return (forward(at.z[0]) * np.exp(at.u[0][:, None] + at.delta[0][None, :])).ravel()
+        eps = at.delta[0][k:] if at.delta.shape[1] > k else np.zeros(k)
+        lam = forward.rest + np.exp(eps) * np.sum(forward.joints * np.exp(at.z[0] - forward.anchor)[:, None, :], -1)
+        return (np.sqrt(lam) / (2 * np.pi) * np.exp(at.u[0][:, None] + at.delta[0][None, :k])).ravel()
 
     def objective(xi):
         return lm._evaluate(pop, unpack(xi), grad=False).objective[0]
@@ -196,13 +203,32 @@ def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shap
     h, n = 1e-6, xi0.size
     jac = np.stack([(model_f(xi0 + h * e) - model_f(xi0 - h * e)) / (2 * h) for e in np.eye(n)], axis=1)
     grad = np.array([(objective(xi0 + h * e) - objective(xi0 - h * e)) / (2 * h) for e in np.eye(n)])
+    assert np.allclose(np.r_[local.grad[0].ravel(), local.grad_d[0] if terms.discrepancy else []], grad,
+                       rtol=1e-5, atol=1e-6 * np.abs(grad).max())
     prior = np.concatenate([np.c_[local.e[0], np.full((tests, 1), pop.inv_u[0, 0])].ravel() if terms.common
-                            else local.e[0].ravel(), np.full(k, pop.inv_d[0, 0]) if terms.discrepancy else []])
+                            else local.e[0].ravel(), pop.inv_d[0] if terms.discrepancy else []])
     dense = jac.T @ (np.where(mask, pop.w[0], 0.0).ravel()[:, None] * jac) + np.diag(prior)
     step = np.linalg.solve(dense, grad)
     for got in (fast, direct):
         flat = np.r_[got[0][0].ravel(), got[1][0] if terms.discrepancy else []]
         assert np.allclose(flat, step, rtol=1e-4, atol=1e-6 * np.max(np.abs(step)))
+
+    # the exact Hessian (the Laplace determinant's) against finite differences of the gradient
+    def gradient(xi):
+        at = lm._evaluate(pop, unpack(xi), grad=True)
+        return np.r_[at.grad[0].ravel(), at.grad_d[0] if terms.discrepancy else []]
+
+    numeric = -np.stack([(gradient(xi0 + h * e) - gradient(xi0 - h * e)) / (2 * h) for e in np.eye(n)], axis=1)
+    hess, coupling, block = lm._hessian(local, pop, exact=True)
+    exact = np.zeros((n, n))
+    for t in range(tests):
+        exact[t * p:(t + 1) * p, t * p:(t + 1) * p] = hess[0, t]
+        if terms.discrepancy:
+            exact[tests * p:, t * p:(t + 1) * p] = coupling[0, t]
+            exact[t * p:(t + 1) * p, tests * p:] = coupling[0, t].T
+    if terms.discrepancy:
+        exact[tests * p:, tests * p:] = block[0] + np.diag(pop.inv_d[0])
+    assert np.allclose(exact, numeric, rtol=1e-4, atol=1e-6 * np.abs(numeric).max())
 
 
 def test_the_group_means_stay_where_the_anchored_forward_model_holds(two_joints):

@@ -292,14 +292,17 @@ def test_identify_bayes_fails_on_unconverged_chains_unless_allowed_and_then_repo
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "have not converged in 40 steps" in err and "--allow-bounds" in err
     assert not out.exists()
-    assert main(["identify", str(campaign), "--method", "bayes", *short, "--allow-bounds", "--out", str(out)]) == 0
+    assert main(["identify", str(campaign), "--method", "bayes", *short, "--allow-bounds", "--errors", "sensitivity",
+                 "--out", str(out)]) == 0
     record = json.loads((out / "identification.json").read_text())
     assert record["diagnostics"]["converged"] is False and record["diagnostics"]["rhat_max"] > 1.01
     errors = record["errors"]
-    assert set(errors) == {"measurement", "common_error", "discrepancy_scale", "discrepancy"}
-    assert list(errors["discrepancy"]) == ["mode1", "mode2", "mode3", "mode4"]
+    assert set(errors) == {"measurement", "common_error", "discrepancy_scale", "discrepancy", "sensitivity"}
+    assert list(errors["discrepancy"]) == list(errors["sensitivity"]) == ["mode1", "mode2", "mode3", "mode4"]
     for entry in (errors["common_error"], errors["discrepancy_scale"], *errors["measurement"].values()):
         assert 0 < entry["ci95"][0] <= entry["value"] <= entry["ci95"][1]
+    for entry in (*errors["discrepancy"].values(), *errors["sensitivity"].values()):
+        assert entry["ci95"][0] <= entry["value"] <= entry["ci95"][1]
     assert {p.name: p.read_bytes() for p in campaign.iterdir()} == before
 
 

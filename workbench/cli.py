@@ -364,8 +364,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=_positive_int, default=12000, help="bayes: the chains run on until every "
                    "R-hat <= 1.01 and ESS >= 400, up to this many steps (default 12000)")
     p.add_argument("--errors", choices=sorted(ERROR_TERMS), default="full",
-                   help="bayes: error terms beside each mode's measurement error: full (a test-level common error "
-                        "and the model's discrepancy per mode, the default), common, discrepancy or none")
+                   help="bayes: error terms besides each mode's measurement error: full (common error, discrepancy per "
+                        "mode; default), common, discrepancy, none, sensitivity (full, joint energies uncertain)")
 
     p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate,
                 ("moments.csv", "run.json"))

@@ -40,7 +40,7 @@ from scipy.optimize import minimize
 
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.data import JointGroups, Values, check_moments, joint_groups
-from workbench.identify.laplace import ErrorTerms, LaplaceLikelihood, laplace_likelihood
+from workbench.identify.laplace import ErrorTerms, LaplaceLikelihood, laplace_likelihood, shared_summary
 from workbench.identify.likelihood import (
     COV_BOUNDS,
     MODULUS_BOUNDS_PA,
@@ -168,6 +168,8 @@ class Posterior:
         ``s_u``, ``discrepancy_scale`` ``s_delta``, relative; `workbench.identify.laplace`), (E,), (E, 2).
     discrepancy, discrepancy_ci95 : (K,), (K, 2) each mode's discrepancy ``delta_k`` (relative), or
         None without that term: the posterior over the sampled parameters of its Laplace law.
+    sensitivity, sensitivity_ci95 : the same for each mode's sensitivity error ``eps_k`` (log of the factor
+        on the mode's joint energies), or None without it.
     trust_reached : the groups whose posterior mean modulus reaches the edge of the region where the
         anchored forward model holds (`workbench.identify.laplace.LaplaceLikelihood.mean_bounds`), after
         anchoring a second time where the posterior was: a result the data and that model cannot place.
@@ -211,6 +213,8 @@ class Posterior:
     error_scales_ci95: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     discrepancy: np.ndarray | None = None
     discrepancy_ci95: np.ndarray | None = None
+    sensitivity: np.ndarray | None = None
+    sensitivity_ci95: np.ndarray | None = None
     trust_reached: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
@@ -249,7 +253,8 @@ class Posterior:
 
     def error_records(self) -> dict[str, object]:
         """identification.json's ``errors`` (an extension key; relative values, medians and 95 % intervals):
-        each mode's measurement error, the further error terms' scales and each mode's discrepancy.
+        each mode's measurement error, the further error terms' scales, each mode's discrepancy and
+        sensitivity error.
         """
         def entry(value: float, ci: np.ndarray) -> dict[str, object]:
             return {"value": float(value), "ci95": [float(ci[0]), float(ci[1])]}
@@ -262,6 +267,9 @@ class Posterior:
         if self.discrepancy is not None and self.discrepancy_ci95 is not None:
             out["discrepancy"] = {f"mode{m}": entry(v, c)
                                   for m, v, c in zip(modes, self.discrepancy, self.discrepancy_ci95)}
+        if self.sensitivity is not None and self.sensitivity_ci95 is not None:
+            out["sensitivity"] = {f"mode{m}": entry(v, c)
+                                  for m, v, c in zip(modes, self.sensitivity, self.sensitivity_ci95)}
         return out
 
 
@@ -382,7 +390,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         acceptance_fraction=float(np.mean(sampler.acceptance_fraction)),
         walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata,
         error_names=terms.names, error_scales=q[1, 2 * g + k:], error_scales_ci95=q[[0, 2], 2 * g + k:].T,
-        trust_reached=trust_reached, **_discrepancy(lm, chain, rng))
+        trust_reached=trust_reached, **(shared_summary(lm, chain, rng) if isinstance(lm, LaplaceLikelihood) else {}))
     if not post.converged:
         log.warning("%s: the chains have not converged (max R-hat %.3f, limit %.2f; min ESS %.0f, limit %d; "
                     "%d steps)", measured.source, rhat.max(), RHAT_LIMIT, ess.min(), ESS_LIMIT, steps)
@@ -478,19 +486,3 @@ def _settled(chain: np.ndarray) -> bool:
 
 
 TRUST_EDGE = 0.03  # log units: a posterior this close to its trust region's edge leans on it
-DISCREPANCY_DRAWS = 400  # posterior draws whose discrepancy law is evaluated for its summary
-
-
-def _discrepancy(lm: LikelihoodModel | LaplaceLikelihood, chain: np.ndarray,
-                 rng: np.random.Generator) -> dict[str, np.ndarray | None]:
-    """Each mode's discrepancy: median and 95 % interval of ``delta_k`` over the posterior, from its
-    Laplace law (mode and sd) at `DISCREPANCY_DRAWS` draws of the sampled parameters.
-    """
-    if not isinstance(lm, LaplaceLikelihood) or not lm.terms.discrepancy:
-        return {"discrepancy": None, "discrepancy_ci95": None}
-    flat = chain.reshape(-1, chain.shape[-1])
-    draws = flat[rng.choice(flat.shape[0], min(DISCREPANCY_DRAWS, flat.shape[0]), replace=False)]
-    delta, sd = lm.discrepancy(draws)
-    sampled = delta + sd * rng.standard_normal(delta.shape)
-    q = np.percentile(sampled, [2.5, 50.0, 97.5], axis=0)
-    return {"discrepancy": q[1], "discrepancy_ci95": q[[0, 2]].T}

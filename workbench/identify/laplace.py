@@ -6,11 +6,14 @@ number ``r`` of random joints, per joint group g a mean ``E_g`` and CoV ``c_g`` 
 and priors), and three error terms:
 
     Y_tj ~ Gamma(1 / c_g^2, E_g c_g^2)                       (eq. 8-9)
-    f_tk = f_k(Y_t) exp(u_t + delta_k) + e_tk,  e_tk ~ Normal(0, (sigma_k fbar_k)^2)
+    f_tk = f_k(Y_t; eps_k) exp(u_t + delta_k) + e_tk,  e_tk ~ Normal(0, (sigma_k fbar_k)^2)
     u_t ~ Normal(0, s_u^2)          a test-level common error: temperature, mounting, all modes of
                                     test t move together (``ErrorTerms.common``)
     delta_k ~ Normal(0, s_delta^2)  the model's discrepancy: mode k's systematic relative error, the
                                     same in every test (``ErrorTerms.discrepancy``)
+    eps_k ~ Normal(0, 0.1^2)        and its sensitivity error: mode k's joint energies are
+                                    ``exp(eps_k)`` times the model's (``ErrorTerms.sensitivity``; on
+                                    request, ``--errors sensitivity``: see below)
 
 ``sigma_k`` is each mode's measurement error; ``s_u`` and ``s_delta`` are sampled too, each with a
 half-normal prior as the sigmas' (`workbench.identify.likelihood`: scales `COMMON_SCALE`,
@@ -20,14 +23,26 @@ scatter (the CoVs' evidence), and its zero-mean prior of sampled width lets a jo
 in the pattern of its energy shares across modes (eq. 5); a discrepancy pattern that the joints
 cannot produce is the discrepancy's, and it widens the means' intervals by what it could absorb.
 
-**Integration.** Every latent variable is integrated out by Laplace: the tests' ``z_t = log(Y_t /
-Y0)`` and ``u_t``, and the shared ``delta``. Gauss-Newton with a line search finds the joint mode of
-the integrand (`LaplaceLikelihood._mode`);
-its Hessian is block-arrow (each test's block couples to ``delta`` only), so each step solves the
-tests' small blocks (through their K x K capacitance when there are more joints than modes,
-`_gauss_newton_step`) and a K x K Schur complement for ``delta``, and
+**Why the sensitivity error.** A mode's sensitivity to a joint, ``0.5 L_kj Y / (c_k + sum L Y)``
+(eq. 5), saturates with the modulus at the mode's own rate, so the pattern of the tests' scatter
+across the modes tells the joints' level even when ``delta`` takes every mean frequency: on proving-
+ground campaigns, holding ``s_delta`` at 3-5 % left the two-bolt frame's horizontal mean where it was,
+4-6 % stiff, and a Timoshenko nominal model removed about 4 points of it
+(`benchmarks/bayes_bias_source.py`). That information is only as good as the model's energy shares;
+``eps_k`` (sd `SENSITIVITY_SD`: a beam zone's share of a mode's strain energy stands for a bolted lap
+to about 10 %) prices it. On the development seed's campaigns (`reports/estimators_proving.md`) it
+brought the two-bolt frame's horizontal mean's coverage from 67 % to 92 %, but on the four-bolt frame
+it moved the horizontal CoV instead (coverage 91 % to 67 %) and took 2.5 times as long; so it is not
+on by default.
 
-    log p(f | theta) ~ log p(f, x*, delta* | theta) + (n / 2) log 2 pi - (1 / 2) log det H,
+**Integration.** Every latent variable is integrated out by Laplace: the tests' ``z_t = log(Y_t /
+Y0)`` and ``u_t``, and the shared ``delta`` and ``eps``. Gauss-Newton with a line search finds the
+joint mode of the integrand (`LaplaceLikelihood._mode`); its Hessian is block-arrow (each test's block
+couples to the shared latents only), so each step solves the tests' small blocks (through their K x K
+capacitance when there are more joints than modes) and one Schur complement for the shared latents
+(`workbench.identify.laplace_steps`), and
+
+    log p(f | theta) ~ log p(f, x*, s* | theta) + (n / 2) log 2 pi - (1 / 2) log det H,
 
 ``n`` the latent count, ``H`` minus the Hessian (the data term's exact Hessian, with the forward
 model's curvature, plus the priors'), ``log det H = sum_t log det H_t + log det S``. Against
@@ -48,11 +63,12 @@ import numpy as np
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.anchored import AnchoredForward, anchored_forward, forward_at, forward_error, tracked_nominal
 from workbench.identify.data import JointGroups, Values
+from workbench.identify.laplace_steps import direct_step, gauss_newton_step, schur, shared_design
 from workbench.identify.likelihood import LOG_2PI, PopulationModel, gamma_log_density, prepare
 from workbench.model.structure import Structure, structure_at_moduli
 
 __all__ = ["ErrorTerms", "ERROR_TERMS", "COMMON_BOUNDS", "DISCREPANCY_BOUNDS", "COMMON_SCALE", "DISCREPANCY_SCALE",
-           "TRUST_RADIUS",
+           "TRUST_RADIUS", "SENSITIVITY_SD", "shared_summary",
            "NEWTON_ITERATIONS", "NEWTON_TOLERANCE", "LaplaceLikelihood", "laplace_likelihood"]
 
 NEWTON_ITERATIONS = 30  # at most; the four-bolt frame's rows settle in 3 to 6
@@ -66,7 +82,8 @@ COMMON_SCALE = 0.005  # half-normal scales: a test shifting all its modes by 0.5
 DISCREPANCY_SCALE = 0.01
 TRUST_RADIUS = 0.5  # how far a group's log mean modulus may go from the anchors' population (mean_bounds)
 MAX_Z_STEP = 0.5  # largest Newton step in log-modulus
-MAX_SHIFT_STEP = 0.05  # largest Newton step in u and delta (relative frequency)
+MAX_SHIFT_STEP = 0.05  # largest Newton step in u, delta (relative frequency) and eps
+SENSITIVITY_SD = 0.1  # eps_k's prior sd: a mode's joint energy known to 10 % (module docstring)
 
 
 @dataclass(frozen=True)
@@ -75,6 +92,7 @@ class ErrorTerms:
 
     common: bool = True
     discrepancy: bool = True
+    sensitivity: bool = False  # with the discrepancy: each mode's joint energies uncertain too (eps_k)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -82,8 +100,10 @@ class ErrorTerms:
         return (("common_error",) if self.common else ()) + (("discrepancy_scale",) if self.discrepancy else ())
 
 
+# by their command-line names; "sensitivity" is "full" with each mode's sensitivity error
 ERROR_TERMS = {"full": ErrorTerms(True, True), "common": ErrorTerms(True, False),
-               "discrepancy": ErrorTerms(False, True), "none": ErrorTerms(False, False)}  # by their command-line names
+               "discrepancy": ErrorTerms(False, True), "none": ErrorTerms(False, False),
+               "sensitivity": ErrorTerms(True, True, True)}
 
 
 @dataclass(frozen=True)
@@ -95,12 +115,15 @@ class _Mode:
     shared: np.ndarray  # (N,) the discrepancy's terms
     delta: np.ndarray  # (N, K) delta at the mode
     delta_sd: np.ndarray  # (N, K) its Laplace standard deviation
+    shared_mode: np.ndarray | None = None  # (N, S) every shared latent at the mode (delta, then eps)
+    shared_cov: np.ndarray | None = None  # (N, S, S) their Laplace covariance
 
 
 @dataclass(frozen=True)
 class _Population:
     """What ``theta`` sets in the integrand, per row: the Gamma laws' shape ``a`` and log scale (N, 1, r),
-    the data weights ``w`` (N, T, K), and ``1 / s_u^2``, ``1 / s_delta^2`` (N, 1) or None for a term off.
+    the data weights ``w`` (N, T, K), ``1 / s_u^2`` (N, 1) and the shared latents' prior precisions (N, S)
+    (``1 / s_delta^2`` for delta, ``1 / SENSITIVITY_SD^2`` for eps), or None for a term off.
     """
 
     a: np.ndarray
@@ -117,7 +140,9 @@ class _Population:
 
 @dataclass(frozen=True)
 class _Latent:
-    """The latent variables of N rows: ``z`` (N, T, r), ``u`` (N, T), ``delta`` (N, K)."""
+    """The latent variables of N rows: ``z`` (N, T, r), ``u`` (N, T), the shared ``delta`` (N, S): each
+    mode's shift, then with the sensitivity term each mode's ``eps``.
+    """
 
     z: np.ndarray
     u: np.ndarray
@@ -151,62 +176,11 @@ class _Local:
     e: np.ndarray
     grad: np.ndarray
     grad_d: np.ndarray
+    share: np.ndarray | None = None  # (N, T, K) dlog f / deps_k, with the sensitivity term
 
     @property
     def objective(self) -> np.ndarray:
         return self.per_test.sum(axis=1) + self.shared
-
-
-def _gauss_newton_step(local: _Local, pop: _Population) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton's step ``H^-1 grad`` in every test's ``(z_t, u_t)`` (N, T, p) and in delta (N, K).
-
-    Each test's block ``H_t = G_t^T G_t + D_t`` (``G_t = W_t^(1/2) J_t``, K x p, ``D_t`` the priors'
-    diagonal: the Gamma laws' ``e`` and ``1 / s_u^2``) is inverted by Woodbury through its K x K
-    capacitance ``C_t = I + G_t D_t^-1 G_t^T``: the data have rank K, so a 20-joint frame (p = 21,
-    K = 10) solves 10 x 10 systems, not 21 x 21. The same algebra gives delta's Schur complement
-    ``S = 1 / s_delta^2 + sum_t V_t C_t^-1 V_t`` (``V_t = W_t^(1/2) f_t``, the coupling
-    ``H_t,delta = G_t^T V_t``), and
-
-        step_d = S^-1 (grad_d - sum_t V_t C_t^-1 Gd_t grad_t),
-        step_t = grad_t / D_t - Gd_t^T C_t^-1 (Gd_t grad_t + V_t step_d),   Gd_t = G_t D_t^-1.
-
-    Woodbury's form with ``I +`` (not ``W^-1 +``) keeps a mode a test lacks (``w = 0``) harmless.
-    """
-    root_w = np.sqrt(pop.w)
-    diagonal = local.e if pop.inv_u is None else np.concatenate(
-        [local.e, np.broadcast_to(pop.inv_u[:, :, None], local.e.shape[:-1] + (1,))], axis=-1)
-    g = root_w[..., None] * local.jac[..., :diagonal.shape[-1]]  # (N, T, K, p)
-    gd = g / diagonal[..., None, :]
-    k = g.shape[-2]
-    c_inv = np.linalg.inv(np.eye(k) + gd @ np.swapaxes(g, -1, -2))  # (N, T, K, K)
-    y = (c_inv @ (gd @ local.grad[..., None]))[..., 0]  # C^-1 Gd grad, (N, T, K)
-    if pop.inv_d is None:
-        step_d = np.zeros(local.grad_d.shape)
-    else:
-        v = root_w * local.f  # (N, T, K)
-        schur = np.sum(v[..., :, None] * c_inv * v[..., None, :], axis=1) + pop.inv_d[:, :, None] * np.eye(k)
-        step_d = np.linalg.solve(schur, (local.grad_d - np.sum(v * y, axis=1))[..., None])[..., 0]
-        y = y + (c_inv @ (v * step_d[:, None, :])[..., None])[..., 0]
-    step = local.grad / diagonal - (np.swapaxes(gd, -1, -2) @ y[..., None])[..., 0]
-    return step, step_d
-
-
-def _solve(local: _Local, hess: np.ndarray, q: np.ndarray, inv_d: np.ndarray | None
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """Newton's step ``H^-1 grad`` of the block-arrow system: each test's block ``hess`` (N, T, p, p),
-    coupled to delta through ``q`` (N, T, K) (`_hessian`), solved directly (`_gauss_newton_step` when the
-    data's rank K is below p); the step in ``(z_t, u_t)`` (N, T, p) and in delta (N, K).
-    """
-    k = q.shape[-1]
-    if inv_d is None:
-        return np.linalg.solve(hess, local.grad[..., None])[..., 0], np.zeros(local.grad_d.shape)
-    coupling = q[..., None] * local.jac  # (N, T, K, p): d2/dx_i ddelta_k of minus the log integrand
-    solved = np.linalg.solve(hess, np.concatenate([np.swapaxes(coupling, -1, -2), local.grad[..., None]], axis=-1))
-    schur = _schur(q, local.f, inv_d, coupling, solved[..., :k])
-    reduced = local.grad_d - _over_tests(coupling, solved[..., k:])[..., 0]
-    step_d = np.linalg.solve(schur, reduced[..., None])
-    step = solved[..., k] - (solved[..., :k] @ step_d[:, None])[..., 0]
-    return step, step_d[..., 0]
 
 
 @dataclass(frozen=True)
@@ -283,6 +257,15 @@ class LaplaceLikelihood(PopulationModel):
         mode = self._mode(np.atleast_2d(np.asarray(theta, float)))
         return mode.delta, mode.delta_sd
 
+    def shared_latents(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every shared latent at the integrand's mode and its Laplace sd, (N, S) each: each mode's discrepancy
+        ``delta_k``, then with the sensitivity term each mode's ``eps_k``; (N, 0) without the discrepancy.
+        """
+        mode = self._mode(np.atleast_2d(np.asarray(theta, float)))
+        if mode.shared_mode is None or mode.shared_cov is None:
+            return np.zeros((mode.delta.shape[0], 0)), np.zeros((mode.delta.shape[0], 0))
+        return mode.shared_mode, np.sqrt(np.clip(np.diagonal(mode.shared_cov, axis1=-2, axis2=-1), 0.0, None))
+
     def reanchored(self, theta: np.ndarray) -> tuple[LaplaceLikelihood, float]:
         """The likelihood with every test's forward model anchored at its latent mode under ``theta`` (D,),
         and the new forward model's error (`workbench.identify.anchored`).
@@ -298,16 +281,38 @@ class LaplaceLikelihood(PopulationModel):
         a, log_th, w, const, norm = self.population(theta)
         extra = theta[:, 2 * self.n_groups + self.fbar.size:]
         inv_u = np.exp(-2.0 * extra[:, :1]) if self.terms.common else None
-        inv_d = np.exp(-2.0 * extra[:, -1:]) if self.terms.discrepancy else None
+        inv_d = None
+        if self.terms.discrepancy:
+            k = self.fbar.size
+            inv_d = np.repeat(np.exp(-2.0 * extra[:, -1:]), k, axis=1)
+            if self.terms.sensitivity:
+                inv_d = np.concatenate([inv_d, np.full((theta.shape[0], k), SENSITIVITY_SD ** -2)], axis=1)
         return _Population(a, log_th, w, inv_u, inv_d), const + norm
 
+    @property
+    def _sensitive(self) -> bool:
+        return self.terms.discrepancy and self.terms.sensitivity
+
     def _evaluate(self, pop: _Population, x: _Latent, grad: bool) -> _Local:
-        """The log integrand at ``x`` without its constants; with ``grad`` its ascent directions too."""
-        if grad:
+        """The log integrand at ``x`` without its constants; with ``grad`` its ascent directions too.
+
+        With the sensitivity term, mode k's joint energies are scaled by ``exp(eps_k)``:
+        ``lambda_tk = c_tk + exp(eps_k) sum_j L_tkj exp(z_tj - zbar_tj)``.
+        """
+        k = self.fbar.size
+        if grad or self._sensitive:
             g, d = self.table(x.z, grad=True)
         else:
             g, d = self.table(x.z), None
-        f = g * np.exp(x.u[..., None] + x.delta[:, None, :])
+        lam, share = (2.0 * math.pi * g) ** 2, None
+        if self._sensitive and d is not None:
+            scale = np.exp(x.delta[:, None, k:])  # (N, 1, K)
+            joint = d.sum(axis=-1)
+            lam = lam + (scale - 1.0) * joint
+            d = d * scale[..., None]
+            share = 0.5 * scale * joint / lam
+            g = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi)
+        f = g * np.exp(x.u[..., None] + x.delta[:, None, :k])
         res = self.f_obs - f
         log_gamma, e = gamma_log_density(x.z, pop.a, pop.log_th)
         per_test = -0.5 * np.sum(pop.w * res * res, axis=-1) + np.sum(log_gamma, axis=-1)
@@ -315,27 +320,29 @@ class LaplaceLikelihood(PopulationModel):
         if pop.inv_u is not None:
             per_test = per_test - 0.5 * x.u * x.u * pop.inv_u
         if pop.inv_d is not None:
-            shared = -0.5 * np.sum(x.delta * x.delta, axis=-1) * pop.inv_d[:, 0]
-        if d is None:
+            shared = -0.5 * np.sum(x.delta * x.delta * pop.inv_d, axis=-1)
+        if not grad or d is None:
             return _Local(per_test, shared, f, res, np.zeros(0), np.zeros(0), np.zeros(0), e, np.zeros(0), np.zeros(0))
         wr = pop.w * res
-        lam = (2.0 * math.pi * g) ** 2
         jac = f[..., None] * d / (2.0 * lam[..., None])  # df/dz
         grad_x = (wr[..., None, :] @ jac)[..., 0, :] + pop.a - e
         if pop.inv_u is not None:  # df/du = f
             grad_x = np.concatenate([grad_x, (np.sum(wr * f, axis=-1) - x.u * pop.inv_u)[..., None]], axis=-1)
             jac = np.concatenate([jac, f[..., None]], axis=-1)
-        grad_d = np.sum(wr * f, axis=1) - (0.0 if pop.inv_d is None else x.delta * pop.inv_d)
-        return _Local(per_test, shared, f, res, lam, d, jac, e, grad_x, grad_d)
+        grad_d = np.sum(wr[..., None] * shared_design(f, share), axis=(1, 2))[:, :x.delta.shape[1]]
+        if pop.inv_d is not None:
+            grad_d = grad_d - x.delta * pop.inv_d
+        return _Local(per_test, shared, f, res, lam, d, jac, e, grad_x, grad_d, share)
 
-    def _hessian(self, local: _Local, pop: _Population, exact: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Minus the Hessian of each test's block (N, T, p, p) and the weights ``q`` (N, T, K) of its
-        coupling to delta and of delta's diagonal. ``exact``: with the residual's curvature terms (the
-        Laplace determinant's); otherwise Gauss-Newton's, positive definite (Newton's direction).
+    def _hessian(self, local: _Local, pop: _Population, exact: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Minus the Hessian: each test's block (N, T, p, p), its coupling to the shared latents (N, T, S, p)
+        and their own block from the data (N, S, S) (`workbench.identify.laplace_steps`). ``exact``: with the
+        residual's curvature terms (the Laplace determinant's); otherwise Gauss-Newton's, positive definite
+        (Newton's direction).
         """
-        r = self.joint_group.size
-        w, f, res, jz = pop.w, local.f, local.res, local.jac[..., :r]
-        q = w * (f - res) if exact else w * f  # d2f/du2 = d2f/ddelta2 = f
+        r, k = self.joint_group.size, self.fbar.size
+        w, f, res, jz, share = pop.w, local.f, local.res, local.jac[..., :r], local.share
+        q = w * (f - res) if exact else w * f  # d2f/du2 = d2f/ddelta2 = d2f/du ddelta = f
         hess = np.swapaxes(jz * w[..., None], -1, -2) @ jz + local.e[..., None] * np.eye(r)
         if exact:  # d2f/dz_i dz_j = delta_ij df_j - df_i d_j / (2 lambda), lambda = (2 pi f / m)^2
             wr = w * res
@@ -346,7 +353,22 @@ class LaplaceLikelihood(PopulationModel):
             h_uu = np.sum(q * f, axis=-1) + pop.inv_u  # (N, T)
             hess = np.concatenate([np.concatenate([hess, h_zu[..., None]], axis=-1),
                                    np.concatenate([h_zu, h_uu[..., None]], axis=-1)[..., None, :]], axis=-2)
-        return hess, q
+        coupling = q[..., None] * local.jac  # (N, T, K, p); then eps's: d2f/deps dz = df/dz (1 - share),
+        if share is not None:  # d2f/deps du = f share
+            on_z = w * (f * share - res * (1.0 - share)) if exact else w * f * share
+            on_u = q * share
+            eps = local.jac * np.concatenate([np.broadcast_to(on_z[..., None], jz.shape), on_u[..., None]], axis=-1)[
+                ..., :local.jac.shape[-1]]
+            coupling = np.concatenate([coupling, eps], axis=-2)
+        s = coupling.shape[-2]
+        block = np.zeros((f.shape[0], s, s))
+        diag = np.arange(k)
+        block[:, diag, diag] = np.sum(q * f, axis=1)
+        if share is not None:  # d2f/ddelta deps = f share; d2f/deps2 = f (share - share^2)
+            block[:, diag, k + diag] = block[:, k + diag, diag] = np.sum(q * f * share, axis=1)
+            curvature = w * f * f * share * share - (w * res * f * (share - share * share) if exact else 0.0)
+            block[:, k + diag, k + diag] = np.sum(curvature, axis=1)
+        return hess, coupling, block
 
     def _mode(self, theta: np.ndarray) -> _Mode:
         """The integrand's mode in every test's ``(z_t, u_t)`` and the shared delta, and the Laplace terms there.
@@ -361,16 +383,19 @@ class LaplaceLikelihood(PopulationModel):
         """
         pop, constants = self._population(theta)
         n, (tests, k), r = theta.shape[0], self.f_obs.shape, self.joint_group.size
+        shared_count = k * (2 if self._sensitive else 1)
         x = _Latent(np.broadcast_to(self.z_start, (n,) + self.z_start.shape).copy(), np.zeros((n, tests)),
-                    np.zeros((n, k)))
+                    np.zeros((n, shared_count)))
         active = np.arange(n)
         for _ in range(NEWTON_ITERATIONS):
             p, here = pop.take(active), x.take(active)
             local = self._evaluate(p, here, grad=True)
             if k < r + (p.inv_u is not None):  # the data's rank is below each test's block: Woodbury
-                step_x, step_d = _gauss_newton_step(local, p)
+                diagonal = local.e if p.inv_u is None else np.concatenate(
+                    [local.e, np.broadcast_to(p.inv_u[:, :, None], local.e.shape[:-1] + (1,))], axis=-1)
+                step_x, step_d = gauss_newton_step(local, p.w, diagonal, p.inv_d)
             else:
-                step_x, step_d = _solve(local, *self._hessian(local, p, exact=False), p.inv_d)
+                step_x, step_d = direct_step(local, *self._hessian(local, p, exact=False), p.inv_d)
             decrement = np.sum(local.grad * step_x, axis=(1, 2)) + np.sum(local.grad_d * step_d, axis=1)
             step = _Latent(step_x[..., :r], step_x[..., r] if p.inv_u is not None else np.zeros(here.u.shape), step_d)
             largest_z = np.max(np.abs(step.z), axis=(1, 2))
@@ -398,40 +423,24 @@ class LaplaceLikelihood(PopulationModel):
 
     def _laplace(self, pop: _Population, x: _Latent, constants: np.ndarray) -> _Mode:
         """The Laplace terms (module docstring) at the integrand's mode ``x`` (`_mode`), with the exact Hessian."""
-        n, k = x.delta.shape
+        n, k = x.delta.shape[0], self.fbar.size
         local = self._evaluate(pop, x, grad=True)
-        hess, q = self._hessian(local, pop, exact=True)
+        hess, coupling, block = self._hessian(local, pop, exact=True)
         sign, log_det = np.linalg.slogdet(hess)
         per_test = (local.per_test + constants
                     + np.where(sign > 0, 0.5 * hess.shape[-1] * LOG_2PI - 0.5 * log_det, -np.inf))
         if pop.inv_u is not None:  # u's normal law's constant
             per_test = per_test + 0.5 * np.log(pop.inv_u) - 0.5 * LOG_2PI
         if pop.inv_d is None:
-            return _Mode(x.z, per_test, np.zeros(n), x.delta, np.zeros((n, k)))
-        # the discrepancy's marginal precision is the Schur complement of the tests' blocks
-        coupling = q[..., None] * local.jac
-        schur = _schur(q, local.f, pop.inv_d, coupling, np.linalg.solve(hess, np.swapaxes(coupling, -1, -2)))
-        sign_s, log_det_s = np.linalg.slogdet(schur)
-        shared = (local.shared + 0.5 * k * np.log(pop.inv_d[:, 0])
-                  + np.where(sign_s > 0, -0.5 * log_det_s, -np.inf))  # the K (1/2) log 2 pi cancel
-        sd = np.sqrt(np.clip(np.diagonal(np.linalg.inv(schur), axis1=-2, axis2=-1), 0.0, None))
-        return _Mode(x.z, per_test, shared, x.delta, sd)
-
-
-def _schur(q: np.ndarray, f: np.ndarray, inv_d: np.ndarray, coupling: np.ndarray, solved: np.ndarray) -> np.ndarray:
-    """``S = D - sum_t C_t^T H_t^-1 C_t``, (N, K, K): the discrepancy block of minus the Hessian, its
-    diagonal ``D_k = sum_t q_tk f_tk + 1 / s_delta^2``, less what the tests' blocks take up.
-    """
-    diagonal = np.sum(q * f, axis=1) + inv_d
-    return diagonal[..., None] * np.eye(q.shape[-1]) - _over_tests(coupling, solved)
-
-
-def _over_tests(coupling: np.ndarray, right: np.ndarray) -> np.ndarray:
-    """``sum_t C_t^T X_t`` (N, K, L) of ``coupling`` (N, T, K, p) and ``right`` (N, T, p, L): one batched
-    product over the tests' stacked rows (an einsum here took a fifth of the likelihood's time).
-    """
-    n, t, k, p = coupling.shape
-    return coupling.transpose(0, 2, 1, 3).reshape(n, k, t * p) @ right.reshape(n, t * p, right.shape[-1])
+            return _Mode(x.z, per_test, np.zeros(n), x.delta[:, :k], np.zeros((n, k)))
+        # the shared latents' marginal precision is the Schur complement of the tests' blocks
+        matrix = schur(block, pop.inv_d, coupling, np.linalg.solve(hess, np.swapaxes(coupling, -1, -2)))
+        sign_s, log_det_s = np.linalg.slogdet(matrix)
+        shared = (local.shared + 0.5 * np.sum(np.log(pop.inv_d), axis=1)
+                  + np.where(sign_s > 0, -0.5 * log_det_s, -np.inf))  # the S (1/2) log 2 pi cancel
+        cov = np.linalg.inv(matrix)
+        sd = np.sqrt(np.clip(np.diagonal(cov, axis1=-2, axis2=-1), 0.0, None))
+        return _Mode(x.z, per_test, shared, x.delta[:, :k], sd[:, :k], x.delta, cov)
 
 
 def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
@@ -457,3 +466,26 @@ def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointG
     lm = LaplaceLikelihood(forward, p.f_obs, p.mask, np.asarray(measured.mean_hz, float), p.joint_group,
                            p.reference_pa, forward.anchor, terms or ErrorTerms(), refit)
     return lm, forward_error(at, nominal, forward, p.modes)
+
+
+SUMMARY_DRAWS = 400  # posterior draws whose shared latents' Laplace law is evaluated for their summary
+
+
+def shared_summary(lm: LaplaceLikelihood, chain: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """`workbench.identify.bayes.Posterior`'s ``discrepancy`` and ``sensitivity`` (and their ``_ci95``): the
+    median and 95 % interval of each mode's ``delta_k`` and ``eps_k`` over the posterior, from their Laplace
+    law (mode and sd) at `SUMMARY_DRAWS` draws of the sampled parameters ``chain`` (..., D); nothing for a
+    term off.
+    """
+    out: dict[str, np.ndarray] = {}
+    if not lm.terms.discrepancy:
+        return out
+    flat = chain.reshape(-1, chain.shape[-1])
+    draws = flat[rng.choice(flat.shape[0], min(SUMMARY_DRAWS, flat.shape[0]), replace=False)]
+    mode, sd = lm.shared_latents(draws)
+    q = np.percentile(mode + sd * rng.standard_normal(mode.shape), [2.5, 50.0, 97.5], axis=0)
+    k = lm.fbar.size
+    for name, part in (("discrepancy", slice(0, k)), ("sensitivity", slice(k, 2 * k))):
+        if q[1, part].size:
+            out[name], out[f"{name}_ci95"] = q[1, part], q[[0, 2]][:, part].T
+    return out

@@ -242,6 +242,9 @@ def _posterior_section(study: Study, tables: Tables, prefix: str) -> str:
     if post.discrepancy is not None and post.discrepancy_ci95 is not None:  # not sampled: no R-hat of its own
         rows += [(f"discrepancy mode{m} (%)", 100.0 * float(v), _pair(ci, 100.0), float("nan"), float("nan"),
                   float("nan")) for m, v, ci in zip(post.modes, post.discrepancy, post.discrepancy_ci95)]
+    if post.sensitivity is not None and post.sensitivity_ci95 is not None:  # a factor exp(eps) on joint energies
+        rows += [(f"joint energy error mode{m} (%)", 100.0 * float(v), _pair(ci, 100.0), float("nan"), float("nan"),
+                  float("nan")) for m, v, ci in zip(post.modes, post.sensitivity, post.sensitivity_ci95)]
     status = ("converged" if post.converged else
               f"NOT converged (an R-hat above {RHAT_LIMIT} or a bulk ESS below {ESS_LIMIT}): intervals not final")
     return (html_figure(fig, "Posterior densities (95 % HDI, median) and pair plot of each group's mean modulus "
