@@ -63,7 +63,7 @@ import numpy as np
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.anchored import AnchoredForward, anchored_forward, forward_at, forward_error, tracked_nominal
 from workbench.identify.data import JointGroups, Values
-from workbench.identify.laplace_steps import direct_step, gauss_newton_step, schur, shared_design
+from workbench.identify.laplace_steps import direct_step, gauss_newton_step, schur
 from workbench.identify.likelihood import LOG_2PI, PopulationModel, gamma_log_density, prepare
 from workbench.model.structure import Structure, structure_at_moduli
 
@@ -329,7 +329,8 @@ class LaplaceLikelihood(PopulationModel):
         if pop.inv_u is not None:  # df/du = f
             grad_x = np.concatenate([grad_x, (np.sum(wr * f, axis=-1) - x.u * pop.inv_u)[..., None]], axis=-1)
             jac = np.concatenate([jac, f[..., None]], axis=-1)
-        grad_d = np.sum(wr[..., None] * shared_design(f, share), axis=(1, 2))[:, :x.delta.shape[1]]
+        on_delta = np.sum(wr * f, axis=1)  # df/ddelta = f, df/deps = f share
+        grad_d = on_delta if share is None else np.concatenate([on_delta, np.sum(wr * f * share, axis=1)], axis=1)
         if pop.inv_d is not None:
             grad_d = grad_d - x.delta * pop.inv_d
         return _Local(per_test, shared, f, res, lam, d, jac, e, grad_x, grad_d, share)
