@@ -13,8 +13,8 @@ which part of the data sets that mean, on the development seed (18) only. Three 
   (this is the generator's physics, so it is a diagnosis, never a remedy).
 
 Prints one JSON line per campaign and fit: each group's mean modulus, its 95 % interval and the
-campaign's sample mean, all in % of the group's law's mean; the discrepancy's scale and each mode's discrepancy (%). Run from the
-repository root (about 25 s per fit):
+campaign's sample mean, all in % of the group's law's mean; the discrepancy's scale and each mode's
+discrepancy (%). Run from the repository root (about 25 s per fit):
 
     python benchmarks/bayes_bias_source.py --reps 0 1 2 3 4 5 --fits default wide timo
 """

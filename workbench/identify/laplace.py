@@ -113,10 +113,8 @@ class _Mode:
     z: np.ndarray  # (N, T, r) the tests' latent log-moduli at the mode
     per_test: np.ndarray  # (N, T) each test's terms
     shared: np.ndarray  # (N,) the discrepancy's terms
-    delta: np.ndarray  # (N, K) delta at the mode
-    delta_sd: np.ndarray  # (N, K) its Laplace standard deviation
-    shared_mode: np.ndarray | None = None  # (N, S) every shared latent at the mode (delta, then eps)
-    shared_cov: np.ndarray | None = None  # (N, S, S) their Laplace covariance
+    shared_mode: np.ndarray  # (N, S) every shared latent at the mode (delta, then eps); (N, 0) without them
+    shared_cov: np.ndarray  # (N, S, S) their Laplace covariance
 
 
 @dataclass(frozen=True)
@@ -254,16 +252,15 @@ class LaplaceLikelihood(PopulationModel):
 
     def discrepancy(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each mode's discrepancy ``delta_k`` at the integrand's mode and its Laplace sd, (N, K) each (0 if off)."""
-        mode = self._mode(np.atleast_2d(np.asarray(theta, float)))
-        return mode.delta, mode.delta_sd
+        delta, sd = self.shared_latents(theta)
+        k = self.fbar.size
+        return (delta[:, :k], sd[:, :k]) if delta.shape[1] else (np.zeros((delta.shape[0], k)),) * 2
 
     def shared_latents(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every shared latent at the integrand's mode and its Laplace sd, (N, S) each: each mode's discrepancy
         ``delta_k``, then with the sensitivity term each mode's ``eps_k``; (N, 0) without the discrepancy.
         """
         mode = self._mode(np.atleast_2d(np.asarray(theta, float)))
-        if mode.shared_mode is None or mode.shared_cov is None:
-            return np.zeros((mode.delta.shape[0], 0)), np.zeros((mode.delta.shape[0], 0))
         return mode.shared_mode, np.sqrt(np.clip(np.diagonal(mode.shared_cov, axis1=-2, axis2=-1), 0.0, None))
 
     def reanchored(self, theta: np.ndarray) -> tuple[LaplaceLikelihood, float]:
@@ -424,7 +421,7 @@ class LaplaceLikelihood(PopulationModel):
 
     def _laplace(self, pop: _Population, x: _Latent, constants: np.ndarray) -> _Mode:
         """The Laplace terms (module docstring) at the integrand's mode ``x`` (`_mode`), with the exact Hessian."""
-        n, k = x.delta.shape[0], self.fbar.size
+        n = x.delta.shape[0]
         local = self._evaluate(pop, x, grad=True)
         hess, coupling, block = self._hessian(local, pop, exact=True)
         sign, log_det = np.linalg.slogdet(hess)
@@ -433,15 +430,13 @@ class LaplaceLikelihood(PopulationModel):
         if pop.inv_u is not None:  # u's normal law's constant
             per_test = per_test + 0.5 * np.log(pop.inv_u) - 0.5 * LOG_2PI
         if pop.inv_d is None:
-            return _Mode(x.z, per_test, np.zeros(n), x.delta[:, :k], np.zeros((n, k)))
+            return _Mode(x.z, per_test, np.zeros(n), np.zeros((n, 0)), np.zeros((n, 0, 0)))
         # the shared latents' marginal precision is the Schur complement of the tests' blocks
         matrix = schur(block, pop.inv_d, coupling, np.linalg.solve(hess, np.swapaxes(coupling, -1, -2)))
         sign_s, log_det_s = np.linalg.slogdet(matrix)
         shared = (local.shared + 0.5 * np.sum(np.log(pop.inv_d), axis=1)
                   + np.where(sign_s > 0, -0.5 * log_det_s, -np.inf))  # the S (1/2) log 2 pi cancel
-        cov = np.linalg.inv(matrix)
-        sd = np.sqrt(np.clip(np.diagonal(cov, axis1=-2, axis2=-1), 0.0, None))
-        return _Mode(x.z, per_test, shared, x.delta[:, :k], sd[:, :k], x.delta, cov)
+        return _Mode(x.z, per_test, shared, x.delta, np.linalg.inv(matrix))
 
 
 def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
