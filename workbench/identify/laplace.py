@@ -30,10 +30,11 @@ ground campaigns, holding ``s_delta`` at 3-5 % left the two-bolt frame's horizon
 4-6 % stiff, and a Timoshenko nominal model removed about 4 points of it
 (`benchmarks/bayes_bias_source.py`). That information is only as good as the model's energy shares;
 ``eps_k`` (sd `SENSITIVITY_SD`: a beam zone's share of a mode's strain energy stands for a bolted lap
-to about 10 %) prices it. On the development seed's campaigns (`reports/estimators_proving.md`) it
-brought the two-bolt frame's horizontal mean's coverage from 67 % to 92 %, but on the four-bolt frame
-it moved the horizontal CoV instead (coverage 91 % to 67 %) and took 2.5 times as long; so it is not
-on by default.
+to about 10 %) was meant to price it. It does not (`reports/estimators_proving.md`, step 6): the
+errors' mean over the modes is a change of every modulus, which the data cannot see, so it only widens
+the means' intervals by ``SENSITIVITY_SD / sqrt(K)``; that widening alone made the two-bolt frame's
+horizontal mean cover (63 % to 90 % on a fresh seed). Their zero-sum pattern moves the estimates away
+from the truth (a four-bolt horizontal CoV from -2 % to -40 %). So it is on request only.
 
 **Integration.** Every latent variable is integrated out by Laplace: the tests' ``z_t = log(Y_t /
 Y0)`` and ``u_t``, and the shared ``delta`` and ``eps``. Gauss-Newton with a line search finds the
