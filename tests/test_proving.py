@@ -436,3 +436,18 @@ def test_no_effect_campaign_gives_the_article_frequencies_through_the_circle_fit
     rel = np.abs(found / true[:, :6] - 1)
     assert np.nanmax(rel) < 5e-4  # the nuisances' scatter between tests is 2e-4 to 1e-3
     assert np.all(np.isfinite(found))
+
+
+def test_a_campaigns_manufacturing_record_rebuilds_its_as_built_frame():
+    # a benchmark's diagnosis fits the as-built frame from the truth's record (benchmarks/bayes_bias_source.py):
+    # the record must give back the frame the campaign was simulated on, and each member's I move as b t^3
+    from workbench.proving.nuisances import NuisanceSettings, built_frame, perturb_frame
+
+    frame = proving_frame("four_bolt")
+    built, record = perturb_frame(frame, NuisanceSettings(), np.random.default_rng(7))
+    assert built_frame(frame, json.loads(json.dumps(record))) == built  # through JSON, as the truth is stored
+    for member in frame.members:
+        b, t = record["sections"][member.name]["width_factor"], record["sections"][member.name]["thickness_factor"]
+        nominal, made = frame.sections[member.section], built.sections[f"{member.section}@{member.name}"]
+        assert math.isclose(made.second_moment / nominal.second_moment, b * t**3, rel_tol=1e-12)
+        assert 0.98 < b * t**3 < 1.02 and (b, t) != (1.0, 1.0)

@@ -30,7 +30,7 @@ import scipy.special
 
 from workbench.model.frame import Frame
 
-__all__ = ["NuisanceSettings", "Streams", "streams", "perturb_frame", "DampingModel", "damping_model",
+__all__ = ["NuisanceSettings", "Streams", "streams", "perturb_frame", "built_frame", "DampingModel", "damping_model",
            "temperature_offsets", "gamma_draws", "sensor_snr_db", "add_noise"]
 
 
@@ -71,27 +71,39 @@ def streams(seed: int) -> Streams:
 
 def perturb_frame(frame: Frame, settings: NuisanceSettings,
                   rng: np.random.Generator) -> tuple[Frame, dict[str, Any]]:
-    """The as-built frame: material and section errors (module docstring), and their record.
+    """The as-built frame: material and section errors (module docstring), and their record
+    (`built_frame` makes the frame from it).
+    """
+    record: dict[str, Any] = {"materials": {}, "sections": {}}
+    for name in frame.materials:
+        e, rho = 1.0 + settings.material_sd * rng.standard_normal(2)
+        record["materials"][name] = {"youngs_modulus_factor": float(e), "density_factor": float(rho)}
+    for member in frame.members:
+        b, t = 1.0 + settings.section_sd * rng.standard_normal(2)
+        record["sections"][member.name] = {"width_factor": float(b), "thickness_factor": float(t)}
+    return built_frame(frame, record), record
+
+
+def built_frame(frame: Frame, record: dict[str, Any]) -> Frame:
+    """``frame`` with a manufacturing ``record``'s errors (`perturb_frame`'s; a campaign's truth holds it).
 
     Each member gets its own section (``<section>@<member>``): a flat bar of width ``b`` and thickness
     ``t`` with ``t = sqrt(12 I / A)``, ``b = A / t``; ``A`` scales as ``b t`` and ``I`` as ``b t^3``.
     """
     materials = {}
-    record: dict[str, Any] = {"materials": {}, "sections": {}}
     for name, mat in frame.materials.items():
-        e, rho = 1.0 + settings.material_sd * rng.standard_normal(2)
-        materials[name] = replace(mat, youngs_modulus=mat.youngs_modulus * e, density=mat.density * rho)
-        record["materials"][name] = {"youngs_modulus_factor": float(e), "density_factor": float(rho)}
+        factor = record["materials"][name]
+        materials[name] = replace(mat, youngs_modulus=mat.youngs_modulus * factor["youngs_modulus_factor"],
+                                  density=mat.density * factor["density_factor"])
     sections = dict(frame.sections)
     members = []
     for member in frame.members:
         sec = frame.sections[member.section]
-        b, t = 1.0 + settings.section_sd * rng.standard_normal(2)
+        b, t = (record["sections"][member.name][k] for k in ("width_factor", "thickness_factor"))
         key = f"{member.section}@{member.name}"
         sections[key] = replace(sec, name=key, area=sec.area * b * t, second_moment=sec.second_moment * b * t**3)
         members.append(replace(member, section=key))
-        record["sections"][member.name] = {"width_factor": float(b), "thickness_factor": float(t)}
-    return replace(frame, materials=materials, sections=sections, members=tuple(members)), record
+    return replace(frame, materials=materials, sections=sections, members=tuple(members))
 
 
 @dataclass(frozen=True)
