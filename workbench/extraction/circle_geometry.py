@@ -7,7 +7,8 @@ distances; the angle swept along it by one viscous mode and its derivatives (`sw
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
+
+from workbench.extraction.levenberg import lm
 
 __all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "taubin", "geometric", "pair_damping", "pairs", "wrap_angle",
            "sweep_angle", "sweep_gradient"]
@@ -48,7 +49,7 @@ def geometric(z: np.ndarray, centre: complex, radius: float) -> tuple[complex, f
         d = np.maximum(np.hypot(w.real - p[0], w.imag - p[1]), 1e-300)
         return np.column_stack([-(w.real - p[0]) / d, -(w.imag - p[1]) / d, -np.ones_like(d)])
 
-    sol = least_squares(residual, [0.0, 0.0, radius / scale], jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
+    sol = lm(residual, [0.0, 0.0, radius / scale], jac, xtol=1e-14, ftol=1e-14)
     return centre + scale * complex(sol.x[0], sol.x[1]), float(abs(sol.x[2]) * scale)
 
 

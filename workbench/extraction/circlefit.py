@@ -20,7 +20,7 @@ exact relation ``tan(theta/2) = |omega^2 - omega_r^2| / (2 zeta_r omega_r omega)
 Per mode and curve (`circle_fit`):
 
 1. algebraic circle (Taubin's fit, Chernov's SVD form), refined by geometric least squares on the
-   radial distances (`scipy.optimize.least_squares`);
+   radial distances (Levenberg-Marquardt, `workbench.extraction.levenberg.lm`);
 2. angle sweep: a first ``omega_r`` where the angle sweeps fastest (parabola through the three
    fastest sweep rates), then a least-squares fit of the exact angle model above,
    ``phi(omega) = phi_0 - 2 arctan x(omega; omega_r, zeta)``, to all the points' angles. The fitted
@@ -90,7 +90,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.stats import t as t_dist
 
 from workbench.extraction.circle_geometry import (
@@ -103,6 +102,7 @@ from workbench.extraction.circle_geometry import (
     taubin,
     wrap_angle,
 )
+from workbench.extraction.levenberg import lm
 from workbench.extraction.multimode import inverse_normal, noise_level, second_mode
 
 __all__ = [
@@ -287,8 +287,7 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
             return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
 
         for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
-            sol = least_squares(residual, [phi0, 1.0, np.log(z0)], jac=jacobian, method="lm", xtol=1e-15,
-                                ftol=1e-15)
+            sol = lm(residual, [phi0, 1.0, np.log(z0)], jacobian, xtol=1e-15, ftol=1e-15)
             if best is None or sol.cost < best.cost:
                 best, best_sense, scale = sol, sense, w0
     assert best is not None  # three starts always ran
@@ -338,7 +337,7 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
 
     c0 = centre / scale
     p0 = np.concatenate([[c0.real, c0.imag, 1.0, phi0, 1.0, np.log(zeta)], np.zeros(2 * n_trend)])
-    sol = least_squares(residual, p0, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    sol = lm(residual, p0, jacobian, xtol=1e-15, ftol=1e-15, gtol=1e-15)
     p = sol.x
     t = (p[6:6 + n_trend] + 1j * p[6 + n_trend:]) * scale
     trend = basis @ t if n_trend else np.zeros_like(data)

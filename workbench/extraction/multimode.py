@@ -15,7 +15,7 @@ modal constants ``A_cr`` (receptance, 1/kg) and residuals ``U_c`` (m/N), ``L_c``
 Each curve is divided by its noise level first, so that the residual sum of squares reads in
 noise variances. For given poles the model is linear in ``A, U, L``: they are solved by least
 squares and eliminated (variable projection, Golub & Pereyra 1973), and only ``log omega_r,
-log zeta_r`` are refined by `scipy.optimize.least_squares`. The covariance of those from the
+log zeta_r`` are refined by Levenberg-Marquardt (`workbench.extraction.levenberg.lm`). The covariance of those from the
 projected Jacobian, ``s^2 (J^T J)^-1`` with ``s^2`` the residual variance on ``N - P`` degrees of
 freedom (``N`` real observations, ``P`` real parameters, linear ones included), gives 95 %
 intervals with the Student-t quantile on ``N - P``.
@@ -45,10 +45,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.stats import chi2
 from scipy.stats import f as f_dist
 from scipy.stats import t as t_dist
+
+from workbench.extraction.levenberg import lm
 
 __all__ = [
     "SPLIT_ALPHA",
@@ -230,7 +231,7 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
         # brought to its edge before the logarithm
         w0 = np.clip(2.0 * np.pi * s[:, 0], np.exp(w_lo), np.exp(w_hi))
         x0 = bounded(np.concatenate([np.log(w0), np.log(np.clip(s[:, 1], 1e-6, 0.5))]))
-        sol = least_squares(residual, x0, jac=jacobian, method="lm", xtol=1e-10, ftol=1e-10)
+        sol = lm(residual, x0, jacobian, xtol=1e-10, ftol=1e-10)
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None, "pole_fit: no start given"
