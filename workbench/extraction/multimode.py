@@ -168,38 +168,46 @@ def _basis(omega: np.ndarray, x: np.ndarray, power: int) -> np.ndarray:
     return columns * ((1j * omega) ** power)[:, None]
 
 
-def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, power: int) -> np.ndarray:
+def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, power: int,
+                         basis: np.ndarray | None = None) -> np.ndarray:
     """Jacobian of the variable-projection residual ``r = (I - P) d`` (`_solve`, stacked as in
     `pole_fit`) with respect to the poles' ``(log w_r, log zeta)``: Golub and Pereyra's
     ``dr = -(I - P) dPhi c - (Phi^+)^H dPhi^H r`` (1973), valid for complex columns and coefficients
     with real parameters since ``P`` is Hermitian. Written out because finite differences of the
-    projected residual were most of the cost of telling a second mode (`second_mode`).
+    projected residual were most of the cost of telling a second mode (`second_mode`). ``basis``:
+    `_basis` at ``x`` when the residual there has computed it already.
     """
     n_poles = x.size // 2
     wr, zeta = np.exp(x[:n_poles]), np.exp(x[n_poles:])
-    basis = _basis(omega, x, power)
+    basis = _basis(omega, x, power) if basis is None else basis
     norms = np.maximum(np.abs(basis).max(axis=0), 1e-300)
     q, upper = np.linalg.qr(basis / norms)
-    coefficients = np.linalg.solve(upper, q.conj().T @ data) / norms[:, None]
+    q_h = q.conj().T
+    coefficients = np.linalg.solve(upper, q_h @ data) / norms[:, None]
     r = data - basis @ coefficients
-    core = wr[None, :] ** 2 - omega[:, None] ** 2 + 2j * zeta[None, :] * wr[None, :] * omega[:, None]
     damping = 2j * zeta[None, :] * wr[None, :] * omega[:, None]
+    core = wr[None, :] ** 2 - omega[:, None] ** 2 + damping  # the same sum, term for term, as `_basis`'s
     g = basis[:, :n_poles] / core  # d(1 / core) = -d(core) / core^2, the pole column being (i w)^p / core
     # d/d log w_r, then d/d log zeta, of each pole column: (n, 2 n_poles), parameter k moving column k % n_poles
     d = np.concatenate([-g * (2.0 * wr[None, :] ** 2 + damping), -g * damping], axis=1)
-    pole = np.tile(np.arange(n_poles), 2)
+    pole = _TWICE[n_poles] if n_poles < len(_TWICE) else np.tile(np.arange(n_poles), 2)
     first = d[:, :, None] * coefficients[pole][None, :, :]                      # (n, 2 n_poles, n_curves)
     flat = first.reshape(first.shape[0], -1)
-    first = (flat - q @ (q.conj().T @ flat)).reshape(first.shape)                # (I - P) dPhi c
+    first = (flat - q @ (q_h @ flat)).reshape(first.shape)                       # (I - P) dPhi c
     lift = q @ np.linalg.solve(upper.conj().T, np.eye(upper.shape[0])[:, :n_poles]) / norms[:n_poles]
     second = lift[:, pole][:, :, None] * (d.conj().T @ r)[None, :, :]            # (Phi^+)^H dPhi^H r
     v = -(first + second).transpose(1, 0, 2).reshape(2 * n_poles, -1)
     return np.concatenate([v.real, v.imag], axis=1).T
 
 
-def _solve(omega, data, x, power):
-    """Linear coefficients (m, n_curves) for given poles, and the residual (n, n_curves)."""
-    basis = _basis(omega, x, power)
+_TWICE = [np.tile(np.arange(n), 2) for n in range(5)]  # the parameters' pole columns, for 0 to 4 poles
+
+
+def _solve(omega, data, x, power, basis=None):
+    """Linear coefficients (m, n_curves) for given poles, and the residual (n, n_curves); ``basis``:
+    `_basis` at ``x`` when computed already.
+    """
+    basis = _basis(omega, x, power) if basis is None else basis
     norms = np.maximum(np.abs(basis).max(axis=0), 1e-300)  # column scaling for the conditioning
     coefficients, *_ = np.linalg.lstsq(basis / norms, data, rcond=None)
     coefficients = coefficients / norms[:, None]
@@ -241,13 +249,24 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
         return np.concatenate([np.minimum(np.maximum(x[:n], w_lo), w_hi),
                                np.minimum(np.maximum(x[n:], z_lo), z_hi)])
 
+    last: dict[bytes, np.ndarray] = {}  # the basis at the last poles: lmder asks the Jacobian where it had the residual
+
+    def basis_at(x):
+        key = x.tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = _basis(omega, x, power)
+        return last[key]
+
     def residual(x):
-        r = _solve(omega, data, bounded(x), power)[1].ravel()
+        x = bounded(x)
+        r = _solve(omega, data, x, power, basis_at(x))[1].ravel()
         return np.concatenate([r.real, r.imag])
 
     def jacobian(x):
-        inside = (x == bounded(x)).astype(float)  # a clipped parameter does not move the model
-        return _projection_jacobian(omega, data, bounded(x), power) * inside[None, :]
+        poles = bounded(x)
+        inside = (x == poles).astype(float)  # a clipped parameter does not move the model
+        return _projection_jacobian(omega, data, poles, power, basis_at(poles)) * inside[None, :]
 
     best = None
     for start in starts:
