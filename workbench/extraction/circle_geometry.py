@@ -7,10 +7,12 @@ distances; the angle swept along it by one viscous mode and its derivatives (`sw
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
+
+from workbench.extraction.levenberg import lm
 
 __all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "taubin", "geometric", "pair_damping", "pairs", "wrap_angle",
-           "sweep_angle", "sweep_gradient"]
+           "sweep_angle", "sweep_gradient", "clip_log_zeta",
+           "trend_basis"]
 
 MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
 PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
@@ -48,7 +50,7 @@ def geometric(z: np.ndarray, centre: complex, radius: float) -> tuple[complex, f
         d = np.maximum(np.hypot(w.real - p[0], w.imag - p[1]), 1e-300)
         return np.column_stack([-(w.real - p[0]) / d, -(w.imag - p[1]) / d, -np.ones_like(d)])
 
-    sol = least_squares(residual, [0.0, 0.0, radius / scale], jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
+    sol = lm(residual, [0.0, 0.0, radius / scale], jac, xtol=1e-14, ftol=1e-14)
     return centre + scale * complex(sol.x[0], sol.x[1]), float(abs(sol.x[2]) * scale)
 
 
@@ -94,6 +96,20 @@ def sweep_angle(omega, phi0: float, omega_r: float, zeta: float, sense: float):
     return phi0 - sense * 2.0 * np.arctan(x)
 
 
+def trend_basis(omega: np.ndarray, omega_ref: float) -> np.ndarray:
+    """Mobility residual shapes ``i w``, ``-i / w``, ``i w^3 / w_ref^2`` (receptance ``U``,
+    ``-L / w^2``, ``U_2 w^2``), shape (n, 3).
+    """
+    return np.column_stack([1j * omega, -1j / omega, 1j * omega**3 / omega_ref**2])
+
+
+def clip_log_zeta(log_zeta: float) -> float:
+    """``log zeta`` kept within (-30, 5) in the fits' models (a wandering damping is a failed start, not an
+    answer): ``np.clip`` of one number, but ten times quicker (it runs at every residual evaluation).
+    """
+    return min(max(log_zeta, -30.0), 5.0)
+
+
 def sweep_gradient(omega: np.ndarray, phi0: float, ratio: float, log_zeta: float, w0: float,
                     sense: float) -> np.ndarray:
     """Derivatives of `sweep_angle` with ``omega_r = ratio * w0``, ``zeta = exp(log_zeta)`` (clipped
@@ -101,9 +117,13 @@ def sweep_gradient(omega: np.ndarray, phi0: float, ratio: float, log_zeta: float
     Written out because finite differences were two thirds of a campaign's circle-fit time.
     """
     inside = -30.0 < log_zeta < 5.0
-    zeta = np.exp(np.clip(log_zeta, -30.0, 5.0))
+    zeta = np.exp(clip_log_zeta(log_zeta))
     omega_r = ratio * w0
     x = (omega**2 - omega_r**2) / (2.0 * zeta * omega_r * omega)
     d_angle = -sense * 2.0 / (1.0 + x**2)               # d model / d x
     dx_domega_r = -omega / (2.0 * zeta * omega_r**2) - 1.0 / (2.0 * zeta * omega)
-    return np.column_stack([np.ones_like(omega), d_angle * dx_domega_r * w0, d_angle * -x * inside])
+    out = np.empty((omega.size, 3))  # filled in place: np.column_stack cost as much as the columns
+    out[:, 0] = 1.0
+    out[:, 1] = d_angle * dx_domega_r * w0
+    out[:, 2] = d_angle * -x * inside
+    return out

@@ -20,7 +20,7 @@ exact relation ``tan(theta/2) = |omega^2 - omega_r^2| / (2 zeta_r omega_r omega)
 Per mode and curve (`circle_fit`):
 
 1. algebraic circle (Taubin's fit, Chernov's SVD form), refined by geometric least squares on the
-   radial distances (`scipy.optimize.least_squares`);
+   radial distances (Levenberg-Marquardt, `workbench.extraction.levenberg.lm`);
 2. angle sweep: a first ``omega_r`` where the angle sweeps fastest (parabola through the three
    fastest sweep rates), then a least-squares fit of the exact angle model above,
    ``phi(omega) = phi_0 - 2 arctan x(omega; omega_r, zeta)``, to all the points' angles. The fitted
@@ -90,20 +90,21 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import t as t_dist
 
 from workbench.extraction.circle_geometry import (
     MIN_SIDE_POINTS,
+    clip_log_zeta,
     geometric,
     pair_damping,
     pairs,
     sweep_angle,
     sweep_gradient,
     taubin,
+    trend_basis,
     wrap_angle,
 )
-from workbench.extraction.multimode import inverse_normal, noise_level, second_mode
+from workbench.extraction.levenberg import lm
+from workbench.extraction.multimode import inverse_normal, noise_level, second_mode, t975
 
 __all__ = [
     "QUANTITIES",
@@ -281,38 +282,30 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
         phi0 = float(phi[k] - sense * step[k] / 2)
 
         def residual(p, sense=sense, w0=w0):
-            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(np.clip(p[2], -30.0, 5.0)), sense))
+            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(clip_log_zeta(p[2])), sense))
 
         def jacobian(p, sense=sense, w0=w0):
             return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
 
         for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
-            sol = least_squares(residual, [phi0, 1.0, np.log(z0)], jac=jacobian, method="lm", xtol=1e-15,
-                                ftol=1e-15)
+            sol = lm(residual, [phi0, 1.0, np.log(z0)], jacobian, xtol=1e-15, ftol=1e-15)
             if best is None or sol.cost < best.cost:
                 best, best_sense, scale = sol, sense, w0
     assert best is not None  # three starts always ran
-    zeta = float(np.exp(np.clip(best.x[2], -30.0, 5.0)))
+    zeta = float(np.exp(clip_log_zeta(best.x[2])))
     # a negative omega_r is the same angle model swept the other way: keep omega_r positive
     flip = 1.0 if best.x[1] >= 0.0 else -1.0
     return float(best.x[0]), float(flip * best.x[1] * scale), zeta, flip * best_sense
 
 
-def _trend_basis(omega: np.ndarray, omega_ref: float) -> np.ndarray:
-    """Mobility residual shapes ``i w``, ``-i / w``, ``i w^3 / w_ref^2`` (receptance ``U``,
-    ``-L / w^2``, ``U_2 w^2``), shape (n, 3).
-    """
-    return np.column_stack([1j * omega, -1j / omega, 1j * omega**3 / omega_ref**2])
-
-
 def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
     """Joint least squares on the complex points: circle (centre, radius), sweep (phi0, omega_r,
     zeta) and the variation of the residual terms across the band (``n_trend`` shapes of
-    `_trend_basis`, zero at the starting omega_r).
+    `trend_basis`, zero at the starting omega_r).
     """
     scale = radius if radius > 0.0 else max(float(np.abs(data).max()), np.finfo(float).tiny)
-    basis = _trend_basis(omega, omega_r)[:, :n_trend]
-    basis = basis - _trend_basis(np.array([omega_r]), omega_r)[:, :n_trend]
+    basis = trend_basis(omega, omega_r)[:, :n_trend]
+    basis = basis - trend_basis(np.array([omega_r]), omega_r)[:, :n_trend]
     norms = np.maximum(np.abs(basis).max(axis=0), 1e-300) if n_trend else np.ones(0)
     basis = basis / norms
     u = data / scale
@@ -320,7 +313,7 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
 
     def model(p):
         c = complex(p[0], p[1])
-        zeta_p = np.exp(np.clip(p[5], -30.0, 5.0))
+        zeta_p = np.exp(clip_log_zeta(p[5]))
         circle = c + p[2] * np.exp(1j * sweep_angle(omega, p[3], p[4] * w0, zeta_p, sense))
         if n_trend:
             circle = circle + basis @ (p[6:6 + n_trend] + 1j * p[6 + n_trend:])
@@ -330,15 +323,20 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
         r = u - model(p)
         return np.concatenate([r.real, r.imag])
 
+    # the Jacobian's columns of the centre and the trend do not move: written once, the circle's filled in
+    fixed = np.column_stack([np.ones_like(u), np.full_like(u, 1j), np.zeros((u.size, 4)), basis, 1j * basis])
+    fixed, n = -np.concatenate([fixed.real, fixed.imag]), u.size
+
     def jacobian(p):
-        on_circle = np.exp(1j * sweep_angle(omega, p[3], p[4] * w0, np.exp(np.clip(p[5], -30.0, 5.0)), sense))
+        on_circle = np.exp(1j * sweep_angle(omega, p[3], p[4] * w0, np.exp(clip_log_zeta(p[5])), sense))
         turn = (p[2] * 1j * on_circle)[:, None] * sweep_gradient(omega, p[3], p[4], p[5], w0, sense)
-        d = np.column_stack([np.ones_like(u), np.full_like(u, 1j), on_circle, turn, basis, 1j * basis])
-        return -np.concatenate([d.real, d.imag])
+        d = fixed.copy()
+        d[:n, 2], d[n:, 2], d[:n, 3:6], d[n:, 3:6] = -on_circle.real, -on_circle.imag, -turn.real, -turn.imag
+        return d
 
     c0 = centre / scale
     p0 = np.concatenate([[c0.real, c0.imag, 1.0, phi0, 1.0, np.log(zeta)], np.zeros(2 * n_trend)])
-    sol = least_squares(residual, p0, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    sol = lm(residual, p0, jacobian, xtol=1e-15, ftol=1e-15, gtol=1e-15)
     p = sol.x
     t = (p[6:6 + n_trend] + 1j * p[6 + n_trend:]) * scale
     trend = basis @ t if n_trend else np.zeros_like(data)
@@ -347,7 +345,7 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
     cov = (2.0 * sol.cost / dof) * inverse_normal(sol.jac)[4:6, 4:6]
     flip = 1.0 if p[4] >= 0.0 else -1.0  # as in `_fit_sweep`: omega_r kept positive, the sense follows
     return (complex(p[0], p[1]) * scale, abs(p[2]) * scale, float(p[3]) + (np.pi if p[2] < 0 else 0.0),
-            float(flip * p[4] * w0), float(np.exp(np.clip(p[5], -30.0, 5.0))), trend,
+            float(flip * p[4] * w0), float(np.exp(clip_log_zeta(p[5]))), trend,
             (np.sqrt(max(cov[0, 0], 0.0)) * w0, np.sqrt(max(cov[1, 1], 0.0)), dof), flip * sense)
 
 
@@ -363,7 +361,7 @@ def _intervals(f_r: float, zeta: float, zeta_sweep: float, spread: tuple[float, 
     ``ModalFit.damping_model_form``) is added in quadrature to each side.
     """
     sd_omega, sd_log, dof = spread
-    t = float(t_dist.ppf(0.975, dof))
+    t = t975(dof)
     half_f = t * sd_omega / (2.0 * np.pi)
     low = np.log(zeta / min(zeta, zeta_sweep)) + t * sd_log
     high = np.log(max(zeta, zeta_sweep) / zeta) + t * sd_log
@@ -400,26 +398,28 @@ def circle_fit(frequency_hz, frf, band: tuple[float, float], quantity: str = "ac
     if h.shape[0] != 1:
         raise ValueError(f"frf: expected one curve of {f.size} lines, got shape {np.shape(frf)}")
     _check_quantity(quantity)
-    fit, triggered = _circle_fit(f, h[0], _check_band(f, band), quantity)
+    noise = noise_level(h)
+    fit, triggered = _circle_fit(f, h[0], _check_band(f, band), quantity, float(noise[0]))
     if not triggered:
         return fit
     # the misfit is systematic: a second mode, or a curve that is not a perfect circle?
-    found = _second_mode_near(f, h, fit, quantity)
+    found = _second_mode_near(f, h, fit, quantity, noise)
     return replace(fit, flags=tuple(x for x in FLAGS if x in fit.flags or (x == "close_mode" and found)))
 
 
-def _second_mode_near(f: np.ndarray, h: np.ndarray, fit: ModalFit, quantity: str) -> bool:
-    """True when a two-pole fit of ``fit.band`` over the curves ``h`` (n_curves, n_freq) finds a
-    second mode (`multimode.second_mode`) within `CLOSE_BANDWIDTHS` half-power bandwidths.
+def _second_mode_near(f: np.ndarray, h: np.ndarray, fit: ModalFit, quantity: str, noise: np.ndarray) -> bool:
+    """True when a two-pole fit of ``fit.band`` over the curves ``h`` (n_curves, n_freq; ``noise`` their
+    `noise_level`) finds a second mode (`multimode.second_mode`) within `CLOSE_BANDWIDTHS` half-power bandwidths.
     """
-    _, two, accepted = second_mode(f, h, fit.band, quantity, noise_level(h), (fit.frequency_hz, fit.damping_ratio))
+    _, two, accepted = second_mode(f, h, fit.band, quantity, noise, (fit.frequency_hz, fit.damping_ratio))
     bandwidth = 2.0 * float(np.max(two.damping_ratio * two.frequency_hz))
     return accepted and float(np.ptp(two.frequency_hz)) < CLOSE_BANDWIDTHS * bandwidth
 
 
-def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantity: str) -> tuple[ModalFit, bool]:
-    """`circle_fit` of the checked curve ``h`` (n_freq,) without the second-mode test; returns the fit
-    and whether its misfit is systematic (the trigger of that test).
+def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantity: str,
+                curve_noise: float) -> tuple[ModalFit, bool]:
+    """`circle_fit` of the checked curve ``h`` (n_freq,) of `noise_level` ``curve_noise``, without the
+    second-mode test; returns the fit and whether its misfit is systematic (the trigger of that test).
     """
     lo, hi = band
     inside = (f >= lo) & (f <= hi)
@@ -441,7 +441,7 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     x = (omega**2 - omega_r**2) / (2.0 * zeta_sweep * omega_r * omega)
     modal = diameter / (1.0 + 1j * sense * x)
     # residual terms on the data: Y - modal = i w U - i L / w, linear least squares
-    coefficients, *_ = np.linalg.lstsq(_trend_basis(omega, omega_r)[:, :2], data - modal, rcond=None)
+    coefficients, *_ = np.linalg.lstsq(trend_basis(omega, omega_r)[:, :2], data - modal, rcond=None)
     upper, lower = coefficients[0], coefficients[1]
 
     radial = np.abs(y - centre) - radius
@@ -450,7 +450,7 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     circle_error = float(np.sqrt(np.mean(radial**2)) / radius) if radius > 0 else np.inf
     # the curve's own noise, independent of the fit, in mobility units at resonance
     to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
-    noise = float(noise_level(h[None, :])[0]) * to_mob
+    noise = curve_noise * to_mob
     power = float(np.sum(np.abs(misfit) ** 2))
     misfit_rms = np.sqrt(power / n)
     # a second mode leaves a misfit larger than the noise, or smooth (correlated) along frequency

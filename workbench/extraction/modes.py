@@ -176,13 +176,14 @@ def split_bands(frequency_hz: list, frfs: list, quantity: str, bands) -> list[tu
     list of (f_lo, f_hi), increasing, each band once or twice.
     """
     bands = [(float(lo), float(hi)) for lo, hi in bands]
+    noise = [noise_level(h) for h in frfs]  # each test's, once: not once per band and vote
     out = []
     for n, (lo, hi) in enumerate(bands):
         floor = bands[n - 1][1] if n > 0 else -np.inf
         ceiling = bands[n + 1][0] if n + 1 < len(bands) else np.inf
         wide = (max(lo - 0.5 * (hi - lo), floor), min(hi + 0.5 * (hi - lo), ceiling))
         for band in ((lo, hi), wide):
-            if _holds_two(frequency_hz, frfs, quantity, band):
+            if _holds_two(frequency_hz, frfs, noise, quantity, band):
                 out.extend([band, band])
                 break
         else:
@@ -190,22 +191,23 @@ def split_bands(frequency_hz: list, frfs: list, quantity: str, bands) -> list[tu
     return out
 
 
-def _holds_two(frequency_hz: list, frfs: list, quantity: str, band: tuple[float, float]) -> bool:
-    """True when at least half of the tests accept a second pole in ``band`` (`split_bands`); the
-    tests are asked in turn until the vote is decided (each is two least-squares pole fits).
+def _holds_two(frequency_hz: list, frfs: list, noise: list, quantity: str, band: tuple[float, float]) -> bool:
+    """True when at least half of the tests accept a second pole in ``band`` (`split_bands`; ``noise``: each
+    test's `noise_level`); the tests are asked in turn until the vote is decided (each is two least-squares
+    pole fits).
     """
     voters = []
-    for f, h in zip(frequency_hz, frfs):
+    for f, h, sigma in zip(frequency_hz, frfs, noise):
         f, h = np.asarray(f, float), np.atleast_2d(h)
         inside = (f >= band[0]) & (f <= band[1])
         if inside.sum() >= MIN_BAND_POINTS and f[inside][0] > 0.0:
-            voters.append((f, h, inside))
+            voters.append((f, h, sigma, inside))
     needed = (len(voters) + 1) // 2   # ayes for 2 * ayes >= len(voters)
     ayes = noes = 0
-    for f, h, inside in voters:
+    for f, h, sigma, inside in voters:
         if ayes >= needed or noes > len(voters) - needed:
             break
-        accepted = second_mode(f, h, band, quantity, noise_level(h), _peak_start(f[inside], h[:, inside]))[2]
+        accepted = second_mode(f, h, band, quantity, sigma, _peak_start(f[inside], h[:, inside]))[2]
         ayes, noes = ayes + accepted, noes + (not accepted)
     return bool(voters) and ayes >= needed
 
@@ -248,17 +250,19 @@ def fit_modes(frequency_hz, frfs, quantity: str, bands=None, count: int | None =
         bands = split_bands([f], [h], quantity, find_mode_bands(f, h, count=count))
     bands = [_check_band(f, band) for band in bands]
     fits: list[list[ModalFit]] = []
+    noise = noise_level(h)  # each curve's, once: not once per band
     k = 0
     while k < len(bands):
         m = 1
         while k + m < len(bands) and bands[k + m] == bands[k]:
             m += 1
         if m > 1:
-            fits.extend(_multimode_rows(f, h, bands[k], quantity, m))
+            fits.extend(_multimode_rows(f, h, noise, bands[k], quantity, m))
         else:
-            row, triggered = zip(*[_circle_fit(f, curve, bands[k], quantity) for curve in h])
+            row, triggered = zip(*[_circle_fit(f, curve, bands[k], quantity, float(sigma))
+                                   for curve, sigma in zip(h, noise)])
             best = row[int(np.argmin([x.circle_error for x in row]))]
-            pair = any(triggered) and _second_mode_near(f, h, best, quantity)
+            pair = any(triggered) and _second_mode_near(f, h, best, quantity, noise)
             fits.append([_with_flag(x, "close_mode") if pair else x for x in row])
         k += m
     # neighbours, from the bands with at least one unflagged fit (the others are flagged already)
@@ -274,10 +278,11 @@ def fit_modes(frequency_hz, frfs, quantity: str, bands=None, count: int | None =
     return [[_with_flag(x, "close_mode") if close[i] else x for x in row] for i, row in enumerate(fits)]
 
 
-def _multimode_rows(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantity: str,
+def _multimode_rows(f: np.ndarray, h: np.ndarray, noise: np.ndarray, band: tuple[float, float], quantity: str,
                     m: int) -> list[list[ModalFit]]:
-    """``m`` modes of one band fitted at once, as `ModalFit` rows (one per mode, lowest first)."""
-    noise = noise_level(h)
+    """``m`` modes of one band fitted at once, as `ModalFit` rows (one per mode, lowest first; ``noise``: the
+    curves' `noise_level`).
+    """
     inside = (f >= band[0]) & (f <= band[1])
     start = _peak_start(f[inside], h[:, inside])
     if m == 2:

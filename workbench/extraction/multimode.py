@@ -15,7 +15,7 @@ modal constants ``A_cr`` (receptance, 1/kg) and residuals ``U_c`` (m/N), ``L_c``
 Each curve is divided by its noise level first, so that the residual sum of squares reads in
 noise variances. For given poles the model is linear in ``A, U, L``: they are solved by least
 squares and eliminated (variable projection, Golub & Pereyra 1973), and only ``log omega_r,
-log zeta_r`` are refined by `scipy.optimize.least_squares`. The covariance of those from the
+log zeta_r`` are refined by Levenberg-Marquardt (`workbench.extraction.levenberg.lm`). The covariance of those from the
 projected Jacobian, ``s^2 (J^T J)^-1`` with ``s^2`` the residual variance on ``N - P`` degrees of
 freedom (``N`` real observations, ``P`` real parameters, linear ones included), gives 95 %
 intervals with the Student-t quantile on ``N - P``.
@@ -43,12 +43,14 @@ accepted only when every one of these holds:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.stats import chi2
 from scipy.stats import f as f_dist
 from scipy.stats import t as t_dist
+
+from workbench.extraction.levenberg import lm
 
 __all__ = [
     "SPLIT_ALPHA",
@@ -63,6 +65,7 @@ __all__ = [
     "noise_level",
     "pole_fit",
     "second_mode",
+    "t975",
 ]
 
 SPLIT_ALPHA = 1e-3            # F-test level for a second pole
@@ -114,6 +117,26 @@ class PoleFit:
         return self.observations - self.parameters
 
 
+@cache
+def t975(dof: int) -> float:
+    """The Student-t 97.5 % quantile on ``dof`` degrees of freedom, remembered: `scipy.stats` takes 70 us a call,
+    and the fits of a campaign ask it for a few dozen ``dof`` some 1500 times.
+    """
+    return float(t_dist.ppf(0.975, dof))
+
+
+@cache
+def _chi2_level(dof: int) -> float:
+    """The ``1 - SPLIT_ALPHA`` quantile of ``chi^2(dof)`` (`second_mode`), remembered as `t975` is."""
+    return float(chi2.ppf(1.0 - SPLIT_ALPHA, dof))
+
+
+@cache
+def _f_level(extra: int, dof: int) -> float:
+    """The ``1 - SPLIT_ALPHA`` quantile of ``F(extra, dof)`` (`accept_second`), remembered as `t975` is."""
+    return float(f_dist.ppf(1.0 - SPLIT_ALPHA, extra, dof))
+
+
 def noise_level(frfs) -> np.ndarray:
     """Noise RMS of each curve, (n_curves,), from second differences along frequency: for white
     circular noise of ``E|n|^2 = sigma^2``, ``|n_(i+1) - 2 n_i + n_(i-1)|`` is Rayleigh with median
@@ -145,38 +168,46 @@ def _basis(omega: np.ndarray, x: np.ndarray, power: int) -> np.ndarray:
     return columns * ((1j * omega) ** power)[:, None]
 
 
-def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, power: int) -> np.ndarray:
+def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, power: int,
+                         basis: np.ndarray | None = None) -> np.ndarray:
     """Jacobian of the variable-projection residual ``r = (I - P) d`` (`_solve`, stacked as in
     `pole_fit`) with respect to the poles' ``(log w_r, log zeta)``: Golub and Pereyra's
     ``dr = -(I - P) dPhi c - (Phi^+)^H dPhi^H r`` (1973), valid for complex columns and coefficients
     with real parameters since ``P`` is Hermitian. Written out because finite differences of the
-    projected residual were most of the cost of telling a second mode (`second_mode`).
+    projected residual were most of the cost of telling a second mode (`second_mode`). ``basis``:
+    `_basis` at ``x`` when the residual there has computed it already.
     """
     n_poles = x.size // 2
     wr, zeta = np.exp(x[:n_poles]), np.exp(x[n_poles:])
-    basis = _basis(omega, x, power)
+    basis = _basis(omega, x, power) if basis is None else basis
     norms = np.maximum(np.abs(basis).max(axis=0), 1e-300)
     q, upper = np.linalg.qr(basis / norms)
-    coefficients = np.linalg.solve(upper, q.conj().T @ data) / norms[:, None]
+    q_h = q.conj().T
+    coefficients = np.linalg.solve(upper, q_h @ data) / norms[:, None]
     r = data - basis @ coefficients
-    core = wr[None, :] ** 2 - omega[:, None] ** 2 + 2j * zeta[None, :] * wr[None, :] * omega[:, None]
     damping = 2j * zeta[None, :] * wr[None, :] * omega[:, None]
+    core = wr[None, :] ** 2 - omega[:, None] ** 2 + damping  # the same sum, term for term, as `_basis`'s
     g = basis[:, :n_poles] / core  # d(1 / core) = -d(core) / core^2, the pole column being (i w)^p / core
     # d/d log w_r, then d/d log zeta, of each pole column: (n, 2 n_poles), parameter k moving column k % n_poles
     d = np.concatenate([-g * (2.0 * wr[None, :] ** 2 + damping), -g * damping], axis=1)
-    pole = np.tile(np.arange(n_poles), 2)
+    pole = _TWICE[n_poles] if n_poles < len(_TWICE) else np.tile(np.arange(n_poles), 2)
     first = d[:, :, None] * coefficients[pole][None, :, :]                      # (n, 2 n_poles, n_curves)
     flat = first.reshape(first.shape[0], -1)
-    first = (flat - q @ (q.conj().T @ flat)).reshape(first.shape)                # (I - P) dPhi c
+    first = (flat - q @ (q_h @ flat)).reshape(first.shape)                       # (I - P) dPhi c
     lift = q @ np.linalg.solve(upper.conj().T, np.eye(upper.shape[0])[:, :n_poles]) / norms[:n_poles]
     second = lift[:, pole][:, :, None] * (d.conj().T @ r)[None, :, :]            # (Phi^+)^H dPhi^H r
     v = -(first + second).transpose(1, 0, 2).reshape(2 * n_poles, -1)
     return np.concatenate([v.real, v.imag], axis=1).T
 
 
-def _solve(omega, data, x, power):
-    """Linear coefficients (m, n_curves) for given poles, and the residual (n, n_curves)."""
-    basis = _basis(omega, x, power)
+_TWICE = [np.tile(np.arange(n), 2) for n in range(5)]  # the parameters' pole columns, for 0 to 4 poles
+
+
+def _solve(omega, data, x, power, basis=None):
+    """Linear coefficients (m, n_curves) for given poles, and the residual (n, n_curves); ``basis``:
+    `_basis` at ``x`` when computed already.
+    """
+    basis = _basis(omega, x, power) if basis is None else basis
     norms = np.maximum(np.abs(basis).max(axis=0), 1e-300)  # column scaling for the conditioning
     coefficients, *_ = np.linalg.lstsq(basis / norms, data, rcond=None)
     coefficients = coefficients / norms[:, None]
@@ -210,18 +241,32 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
     # model: a wandering pole is a failed start, not an answer)
     width = band[1] - band[0]
     w_lo, w_hi = np.log(2.0 * np.pi * max(band[0] - width, 0.5 * band[0])), np.log(2.0 * np.pi * (band[1] + width))
+    z_lo, z_hi = np.log(1e-6), np.log(0.5)
 
     def bounded(x):
         n = x.size // 2
-        return np.concatenate([np.clip(x[:n], w_lo, w_hi), np.clip(x[n:], np.log(1e-6), np.log(0.5))])
+        # np.minimum(np.maximum()): np.clip's values, without its 4 us of dispatch at every evaluation
+        return np.concatenate([np.minimum(np.maximum(x[:n], w_lo), w_hi),
+                               np.minimum(np.maximum(x[n:], z_lo), z_hi)])
+
+    last: dict[bytes, np.ndarray] = {}  # the basis at the last poles: lmder asks the Jacobian where it had the residual
+
+    def basis_at(x):
+        key = x.tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = _basis(omega, x, power)
+        return last[key]
 
     def residual(x):
-        r = _solve(omega, data, bounded(x), power)[1].ravel()
+        x = bounded(x)
+        r = _solve(omega, data, x, power, basis_at(x))[1].ravel()
         return np.concatenate([r.real, r.imag])
 
     def jacobian(x):
-        inside = (x == bounded(x)).astype(float)  # a clipped parameter does not move the model
-        return _projection_jacobian(omega, data, bounded(x), power) * inside[None, :]
+        poles = bounded(x)
+        inside = (x == poles).astype(float)  # a clipped parameter does not move the model
+        return _projection_jacobian(omega, data, poles, power, basis_at(poles)) * inside[None, :]
 
     best = None
     for start in starts:
@@ -230,7 +275,7 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
         # brought to its edge before the logarithm
         w0 = np.clip(2.0 * np.pi * s[:, 0], np.exp(w_lo), np.exp(w_hi))
         x0 = bounded(np.concatenate([np.log(w0), np.log(np.clip(s[:, 1], 1e-6, 0.5))]))
-        sol = least_squares(residual, x0, jac=jacobian, method="lm", xtol=1e-10, ftol=1e-10)
+        sol = lm(residual, x0, jacobian, xtol=1e-10, ftol=1e-10)
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None, "pole_fit: no start given"
@@ -247,7 +292,7 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
     # covariance of (log w_r, log zeta_r): residual variance per real observation, (J^T J)^-1
     variance = rss / dof
     cov = variance * inverse_normal(jac)
-    half = np.minimum(t_dist.ppf(0.975, dof) * np.sqrt(np.clip(np.diag(cov), 0.0, None)), 50.0)
+    half = np.minimum(t975(dof) * np.sqrt(np.clip(np.diag(cov), 0.0, None)), 50.0)
     wr, zeta = np.exp(x[:n_poles]), np.exp(x[n_poles:])
     fr = wr / (2.0 * np.pi)
     constants = coefficients[:n_poles].T * np.asarray(noise, float)[:, None]   # (n_curves, n_poles)
@@ -297,7 +342,7 @@ def second_mode(frequency_hz, frfs, band: tuple[float, float], quantity: str, no
     (one-pole fit, two-pole fit, True when the second pole is accepted).
     """
     one = pole_fit(frequency_hz, frfs, band, quantity, noise, [[start]])
-    if screen and one.rss <= 0.5 * chi2.ppf(1.0 - SPLIT_ALPHA, one.dof):
+    if screen and one.rss <= 0.5 * _chi2_level(one.dof):
         return one, one, False  # the one-pole fit leaves noise only: nothing for a second pole
     two = pole_fit(frequency_hz, frfs, band, quantity, noise,
                    _second_starts(frequency_hz, one, frfs, quantity, noise))
@@ -310,7 +355,7 @@ def accept_second(one: PoleFit, two: PoleFit) -> bool:
         return False
     extra = two.parameters - one.parameters
     statistic = ((one.rss - two.rss) / extra) / (two.rss / two.dof)
-    if statistic < f_dist.ppf(1.0 - SPLIT_ALPHA, extra, two.dof):
+    if statistic < _f_level(extra, two.dof):
         return False
     # noise-normalised data: pure noise leaves RSS = N / 2 (E|n|^2 = 1 split over real and imaginary)
     excess = max(two.rss - 0.5 * two.dof, 0.0)
