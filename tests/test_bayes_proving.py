@@ -3,9 +3,9 @@ proving ground, fitted with the generator's own physics (`benchmarks/bayes_bias_
 
 With the nominal model right, what is left between each group's estimated mean modulus and the campaign's sample
 mean is the pipeline's own error. On the development seed's campaigns 0-5 (four-bolt frame,
-`reports/estimators_proving.md`, section 7) it was 0.05-0.3 points, and the discrepancy scale fell to 0.01 % or
+`reports/estimators_proving.md`, section 7) it was 0.04-0.32 points, and the discrepancy scale fell to 0.01 % or
 less, against 0.2-0.6 % with the bundled Euler-Bernoulli file. The bounds below were frozen from those six
-before this test's campaign (7) was fitted: 1.5 points (five times the largest), and a discrepancy scale under
+before this test's campaign (7) was fitted: 1.5 points (about five times the largest), and a discrepancy scale under
 0.2 % (the smallest the misspecified file needed).
 """
 
