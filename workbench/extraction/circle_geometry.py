@@ -10,12 +10,12 @@ import numpy as np
 
 from workbench.extraction.levenberg import lm
 
-__all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "taubin", "geometric", "pair_damping", "pairs", "wrap_angle",
-           "sweep_angle", "sweep_gradient", "clip_log_zeta",
-           "trend_basis"]
+__all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "LOG_ZETA_BOUNDS", "taubin", "geometric", "pair_damping", "pairs",
+           "wrap_angle", "sweep_angle", "sweep_gradient", "clip_log_zeta", "trend_basis"]
 
 MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
 PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
+LOG_ZETA_BOUNDS = (-30.0, 5.0)  # log zeta in the fits' models: a wandering damping is a failed start, not an answer
 
 
 def taubin(z: np.ndarray) -> tuple[complex, float]:
@@ -104,10 +104,10 @@ def trend_basis(omega: np.ndarray, omega_ref: float) -> np.ndarray:
 
 
 def clip_log_zeta(log_zeta: float) -> float:
-    """``log zeta`` kept within (-30, 5) in the fits' models (a wandering damping is a failed start, not an
-    answer): ``np.clip`` of one number, but ten times quicker (it runs at every residual evaluation).
+    """``log zeta`` kept within `LOG_ZETA_BOUNDS`: ``np.clip`` of one number, but ten times quicker (it runs at
+    every residual evaluation).
     """
-    return min(max(log_zeta, -30.0), 5.0)
+    return min(max(log_zeta, LOG_ZETA_BOUNDS[0]), LOG_ZETA_BOUNDS[1])
 
 
 def sweep_gradient(omega: np.ndarray, phi0: float, ratio: float, log_zeta: float, w0: float,
@@ -116,7 +116,7 @@ def sweep_gradient(omega: np.ndarray, phi0: float, ratio: float, log_zeta: float
     as in the fits: zero outside the clip) with respect to (phi0, ratio, log_zeta), shape (n, 3).
     Written out because finite differences were two thirds of a campaign's circle-fit time.
     """
-    inside = -30.0 < log_zeta < 5.0
+    inside = LOG_ZETA_BOUNDS[0] < log_zeta < LOG_ZETA_BOUNDS[1]
     zeta = np.exp(clip_log_zeta(log_zeta))
     omega_r = ratio * w0
     x = (omega**2 - omega_r**2) / (2.0 * zeta * omega_r * omega)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import leastsq
 
-__all__ = ["LMResult", "lm"]
+__all__ = ["LMResult", "LastCall", "lm"]
 
 
 @dataclass(frozen=True)
@@ -39,10 +39,11 @@ class LMResult:
     jac: np.ndarray
 
 
-class _LastCall:
+class LastCall:
     """A function remembering its last argument and value: `scipy.optimize.leastsq` checks the residual and
     the Jacobian at ``x0`` before ``lmder`` asks for them again, and ``least_squares`` reads the Jacobian at
-    the solution, which ``lmder`` has most often just computed.
+    the solution, which ``lmder`` has most often just computed (`lm`); a residual and its Jacobian share work
+    at the same point (`workbench.extraction.multimode.pole_fit`'s basis).
     """
 
     def __init__(self, fun: Callable[[np.ndarray], np.ndarray]) -> None:
@@ -81,7 +82,7 @@ def lm(fun: Callable[[np.ndarray], np.ndarray], x0, jac: Callable[[np.ndarray], 
         The residuals are not finite at ``x0``, or fewer than the parameters (as ``least_squares``).
     """
     x0 = np.atleast_1d(np.asarray(x0, dtype=float))
-    residual, jacobian = _LastCall(fun), _LastCall(jac)
+    residual, jacobian = LastCall(fun), LastCall(jac)
     f0 = residual(x0)
     if not np.all(np.isfinite(f0)):
         raise ValueError("Residuals are not finite in the initial point.")

@@ -50,7 +50,7 @@ from scipy.stats import chi2
 from scipy.stats import f as f_dist
 from scipy.stats import t as t_dist
 
-from workbench.extraction.levenberg import lm
+from workbench.extraction.levenberg import LastCall, lm
 
 __all__ = [
     "SPLIT_ALPHA",
@@ -190,7 +190,7 @@ def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, pow
     g = basis[:, :n_poles] / core  # d(1 / core) = -d(core) / core^2, the pole column being (i w)^p / core
     # d/d log w_r, then d/d log zeta, of each pole column: (n, 2 n_poles), parameter k moving column k % n_poles
     d = np.concatenate([-g * (2.0 * wr[None, :] ** 2 + damping), -g * damping], axis=1)
-    pole = _TWICE[n_poles] if n_poles < len(_TWICE) else np.tile(np.arange(n_poles), 2)
+    pole = np.tile(np.arange(n_poles), 2)
     first = d[:, :, None] * coefficients[pole][None, :, :]                      # (n, 2 n_poles, n_curves)
     flat = first.reshape(first.shape[0], -1)
     first = (flat - q @ (q_h @ flat)).reshape(first.shape)                       # (I - P) dPhi c
@@ -198,9 +198,6 @@ def _projection_jacobian(omega: np.ndarray, data: np.ndarray, x: np.ndarray, pow
     second = lift[:, pole][:, :, None] * (d.conj().T @ r)[None, :, :]            # (Phi^+)^H dPhi^H r
     v = -(first + second).transpose(1, 0, 2).reshape(2 * n_poles, -1)
     return np.concatenate([v.real, v.imag], axis=1).T
-
-
-_TWICE = [np.tile(np.arange(n), 2) for n in range(5)]  # the parameters' pole columns, for 0 to 4 poles
 
 
 def _solve(omega, data, x, power, basis=None):
@@ -249,14 +246,8 @@ def pole_fit(frequency_hz, frfs, band: tuple[float, float], quantity: str, noise
         return np.concatenate([np.minimum(np.maximum(x[:n], w_lo), w_hi),
                                np.minimum(np.maximum(x[n:], z_lo), z_hi)])
 
-    last: dict[bytes, np.ndarray] = {}  # the basis at the last poles: lmder asks the Jacobian where it had the residual
-
-    def basis_at(x):
-        key = x.tobytes()
-        if key not in last:
-            last.clear()
-            last[key] = _basis(omega, x, power)
-        return last[key]
+    # the basis at the last poles: lmder asks the Jacobian where it had the residual
+    basis_at = LastCall(lambda poles: _basis(omega, poles, power))
 
     def residual(x):
         x = bounded(x)
