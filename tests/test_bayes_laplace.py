@@ -151,37 +151,44 @@ def test_the_log_likelihood_is_smooth_between_posterior_points_and_its_newton_se
 
 
 @pytest.mark.parametrize("shape", [(6, 4), (2, 5)])
-@pytest.mark.parametrize("terms", [ErrorTerms(True, True, True), ErrorTerms(True, True), ErrorTerms(True, False),
-                                   ErrorTerms(False, True, True), ErrorTerms(False, False)])
-def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shape):
+@pytest.mark.parametrize("terms,factors", [(ErrorTerms(True, True, True), 0), (ErrorTerms(True, True), 0),
+                                           (ErrorTerms(True, False), 0), (ErrorTerms(False, True, True), 0),
+                                           (ErrorTerms(False, False), 0), (ErrorTerms(True, True), 3),
+                                           (ErrorTerms(False, True), 3)])
+def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, factors, shape):
     # More joints than modes (the Woodbury path) and fewer (the direct path), one mode missing in one
     # test: both steps against the whole latent system assembled densely, its Jacobian by finite
     # differences of the forward model written out here (the joint energies scaled by exp(eps_k) with
-    # the sensitivity term) and its gradient by finite differences of the log integrand
+    # the sensitivity term; rest and joint energies linear in the manufacturing factors m with them)
+    # and its gradient by finite differences of the log integrand
     from workbench.identify.laplace import LaplaceLikelihood, _Latent
+    from workbench.identify.laplace_hessian import hessian_blocks
     from workbench.identify.laplace_steps import direct_step, gauss_newton_step
 
     rng = np.random.default_rng(3)
     (r, k), tests, p = shape, 3, shape[0] + terms.common
-    shared = k * (1 + (terms.discrepancy and terms.sensitivity)) if terms.discrepancy else 0
-    forward = AnchoredForward(0.1 * rng.standard_normal((tests, r)), rng.uniform(1e6, 4e6, (tests, k)),
-                              rng.uniform(1e4, 2e5, (tests, k, r)))
+    shared = k * (1 + (terms.discrepancy and terms.sensitivity)) + factors if terms.discrepancy else 0
+    rest, joints = rng.uniform(1e6, 4e6, (tests, k)), rng.uniform(1e4, 2e5, (tests, k, r))
+    forward = AnchoredForward(0.1 * rng.standard_normal((tests, r)), rest, joints,
+                              *((rest[..., None] * rng.uniform(-1, 2, (tests, k, factors)),
+                                 joints[..., None] * rng.uniform(-1, 3, (tests, k, r, factors))) if factors else ()))
     f_obs = forward(forward.anchor) * (1 + 0.003 * rng.standard_normal((tests, k)))
     mask = np.ones((tests, k), bool)
     mask[1, 0] = False
     lm = LaplaceLikelihood(forward, np.where(mask, f_obs, 0.0), mask, f_obs.mean(axis=0), np.arange(r) % 2,
-                           np.array([1.0, 1.0]), forward.anchor, terms)
+                           np.array([1.0, 1.0]), forward.anchor, terms, factor_sd=np.full(factors, 0.004))
     scales = {"common_error": 4e-3, "discrepancy_scale": 6e-3}
     theta = np.r_[0.02, -0.03, np.log([0.1, 0.2]), np.full(k, np.log(2e-3)), np.log([scales[n] for n in terms.names])]
     pop, _ = lm._population(theta[None])
     x = _Latent(forward.anchor[None] + 0.05 * rng.standard_normal((1, tests, r)),
                 0.002 * rng.standard_normal((1, tests)) * terms.common,
-                0.02 * rng.standard_normal((1, max(shared, k))) * terms.discrepancy)
+                np.r_[0.02 * rng.standard_normal(max(shared - factors, k)),
+                      0.005 * rng.standard_normal(factors)][None] * terms.discrepancy)
     local = lm._evaluate(pop, x, grad=True)
     diagonal = np.concatenate([local.e, np.full(local.e.shape[:-1] + (1,), pop.inv_u[0, 0])], axis=-1) \
         if terms.common else local.e
     fast = gauss_newton_step(local, pop.w, diagonal, pop.inv_d)
-    direct = direct_step(local, *lm._hessian(local, pop, exact=False), pop.inv_d)
+    direct = direct_step(local, *hessian_blocks(local, pop.w, pop.inv_u, r, exact=False), pop.inv_d)
 
     def unpack(xi):  # the dense system's latents: (z_t, u_t) per test, then delta (and eps)
         blocks = xi[:tests * p].reshape(tests, p)
@@ -191,8 +198,12 @@ def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shap
 
     def model_f(xi):
         at = unpack(xi)
-        eps = at.delta[0][k:] if at.delta.shape[1] > k else np.zeros(k)
-        lam = forward.rest + np.exp(eps) * np.sum(forward.joints * np.exp(at.z[0] - forward.anchor)[:, None, :], -1)
+        s = at.delta[0]
+        eps = s[k:2 * k] if s.size - factors > k else np.zeros(k)
+        m = s[s.size - factors:]
+        joints_m = forward.joints + (forward.joints_grad @ m if factors else 0.0)
+        lam = forward.rest + (forward.rest_grad @ m if factors else 0.0) + np.exp(eps) * np.sum(
+            joints_m * np.exp(at.z[0] - forward.anchor)[:, None, :], -1)
         return (np.sqrt(lam) / (2 * np.pi) * np.exp(at.u[0][:, None] + at.delta[0][None, :k])).ravel()
 
     def objective(xi):
@@ -219,7 +230,7 @@ def test_both_gauss_newton_solvers_give_the_step_of_the_dense_system(terms, shap
         return np.r_[at.grad[0].ravel(), at.grad_d[0] if terms.discrepancy else []]
 
     numeric = -np.stack([(gradient(xi0 + h * e) - gradient(xi0 - h * e)) / (2 * h) for e in np.eye(n)], axis=1)
-    hess, coupling, block = lm._hessian(local, pop, exact=True)
+    hess, coupling, block = hessian_blocks(local, pop.w, pop.inv_u, r, exact=True)
     exact = np.zeros((n, n))
     for t in range(tests):
         exact[t * p:(t + 1) * p, t * p:(t + 1) * p] = hess[0, t]

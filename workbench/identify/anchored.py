@@ -49,18 +49,42 @@ class AnchoredForward:
     anchor : (T, r) ``zbar_t``.
     rest : (T, K) ``c_tk``, (rad/s)^2.
     joints : (T, K, r) ``L_tkj`` at the anchor, (rad/s)^2.
+    rest_grad, joints_grad : (T, K, P) and (T, K, r, P) their derivatives in the logs ``m`` of a frame's
+        manufacturing factors (`workbench.identify.members`), or None without them.
     """
 
     anchor: np.ndarray
     rest: np.ndarray
     joints: np.ndarray
+    rest_grad: np.ndarray | None = None
+    joints_grad: np.ndarray | None = None
 
-    def __call__(self, z: np.ndarray, grad: bool = False) -> tuple[np.ndarray, np.ndarray] | np.ndarray:
-        """Frequencies (..., T, K), Hz, at ``z`` (..., T, r); with ``grad`` also ``dlambda/dz`` (..., T, K, r)."""
-        d = self.joints * np.exp(z - self.anchor)[..., None, :]  # (..., T, K, r)
-        lam = self.rest + d.sum(axis=-1)
+    @property
+    def factor_count(self) -> int:
+        return 0 if self.rest_grad is None else self.rest_grad.shape[-1]
+
+    def __call__(self, z: np.ndarray, grad: bool = False,
+                 m: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | np.ndarray:
+        """Frequencies (..., T, K), Hz, at ``z`` (..., T, r); with ``grad`` also ``dlambda/dz`` (..., T, K, r).
+        ``m`` (..., P): the manufacturing factors' logs, first order (`workbench.identify.members`).
+        """
+        joints, rest = self.joints, self.rest
+        if m is not None and self.joints_grad is not None and self.rest_grad is not None:
+            joints = joints + np.einsum("tkrp,...p->...tkr", self.joints_grad, m)
+            rest = rest + np.einsum("tkp,...p->...tk", self.rest_grad, m)
+        d = joints * np.exp(z - self.anchor)[..., None, :]  # (..., T, K, r)
+        lam = rest + d.sum(axis=-1)
         f = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi)
         return (f, d) if grad else f
+
+    def factor_terms(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``dlambda/dm`` (..., T, K, P) at ``z`` (..., T, r) and its part through the joints,
+        ``D_tkjp exp(z_tj - zbar_tj)`` (..., T, K, r, P) (``d2lambda / dz_j dm_p``).
+        """
+        if self.joints_grad is None or self.rest_grad is None:
+            raise ValueError("factor_terms: this forward model has no manufacturing factors")
+        dm = self.joints_grad * np.exp(z - self.anchor)[..., None, :, None]
+        return self.rest_grad + dm.sum(axis=-2), dm
 
 
 def tracked_nominal(model: Structure, modes: np.ndarray) -> Modes:

@@ -3,21 +3,18 @@
 The likelihood, its priors and its forward model are `workbench.identify.likelihood`; this module
 samples the posterior and summarises it.
 
-**Cost** (2 shared cores, one BLAS thread): 40 tests x 10 modes, one joint, 48 walkers x 1800
-steps: about 20 s; 18 tests x 9 modes, two joints, 52 walkers: about 40 s
-(benchmarks/bayes_demo.py).
+**Cost** (2 shared cores, one BLAS thread): 40 tests x 10 modes, one joint, 48 walkers x 1800 steps:
+about 20 s; 18 tests x 9 modes, two joints, 52 walkers: about 40 s (benchmarks/bayes_demo.py).
 
 **Sampler**: `emcee.EnsembleSampler` (differential-evolution moves and an independence move fitted to
 the burn-in, vectorised log-probability; `workbench.identify.sampler`), walkers 2 x dims + 2 (at least
 24), started from the Laplace approximation at the maximum a posteriori point (L-BFGS-B,
 finite-difference Hessian); ``burn`` steps discarded, ``burn // 2`` more adapt the independence
-move, then ``steps`` kept.
-Seeding: the walkers' start from ``numpy.random.default_rng(seed)`` and emcee's own generator
-through ``emcee.State(..., random_state=RandomState(seed).get_state())`` (emcee silently ignores
-a bare integer there). Progress goes through the `workbench.progress`
-callback, one ``"emcee"`` task over the burn-in and the kept steps. Diagnostics: arviz R-hat and
-bulk ESS (walkers as chains) and emcee's integrated autocorrelation time. Intervals are
-equal-tailed 95 % (2.5 and 97.5 percentiles).
+move, then ``steps`` kept. Seeding: the walkers' start from ``numpy.random.default_rng(seed)`` and
+emcee's own generator through ``emcee.State(..., random_state=RandomState(seed).get_state())`` (emcee
+silently ignores a bare integer there). Progress goes through the `workbench.progress` callback, one
+``"emcee"`` task over the burn-in and the kept steps. Diagnostics: arviz R-hat and bulk ESS (walkers as
+chains) and emcee's integrated autocorrelation time. Intervals are equal-tailed 95 % (2.5, 97.5 %).
 
 Only `workbench.identify.sampler` imports emcee; arviz (which pulls in pandas and xarray) is imported
 only when a result is built (`load_arviz`). Writing the posterior to a file is the caller's
@@ -53,6 +50,7 @@ from workbench.identify.likelihood import (
 from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT, settled
 from workbench.identify.sampler import run_ensemble
 from workbench.model.structure import Structure
+from workbench.model.tolerance import Tolerances
 from workbench.progress import Progress
 
 MAP_BOX = 0.2  # half-width (log units) of the box the MAP search moves in: where the posterior stays finite
@@ -170,6 +168,7 @@ class Posterior:
         None without that term: the posterior over the sampled parameters of its Laplace law.
     sensitivity, sensitivity_ci95 : the same for each mode's sensitivity error ``eps_k`` (log of the factor
         on the mode's joint energies), or None without it.
+    factors, factors_ci95, factor_names : the same for the frame's manufacturing factors (logs), or None.
     trust_reached : the groups whose posterior mean modulus reaches the edge of the region where the
         anchored forward model holds (`workbench.identify.laplace.LaplaceLikelihood.mean_bounds`), after
         anchoring a second time where the posterior was: a result the data and that model cannot place.
@@ -215,6 +214,9 @@ class Posterior:
     discrepancy_ci95: np.ndarray | None = None
     sensitivity: np.ndarray | None = None
     sensitivity_ci95: np.ndarray | None = None
+    factors: np.ndarray | None = None
+    factors_ci95: np.ndarray | None = None
+    factor_names: tuple[str, ...] = ()
     trust_reached: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
@@ -270,6 +272,9 @@ class Posterior:
         if self.sensitivity is not None and self.sensitivity_ci95 is not None:
             out["sensitivity"] = {f"mode{m}": entry(v, c)
                                   for m, v, c in zip(modes, self.sensitivity, self.sensitivity_ci95)}
+        if self.factors is not None and self.factors_ci95 is not None:  # log factors, about relative errors
+            out["manufacturing"] = {n: entry(v, c) for n, v, c in zip(self.factor_names, self.factors,
+                                                                      self.factors_ci95)}
         return out
 
 
@@ -305,7 +310,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
                    start: Values | None = None, walkers: int | None = None, steps: int = 3000, burn: int = 500,
                    seed: int = 0, forward: str = "exact", integration: str = "auto",
                    errors: ErrorTerms | None = None, max_steps: int | None = None,
-                   progress: Progress | None = None) -> Posterior:
+                   progress: Progress | None = None, tolerances: Tolerances | None = None) -> Posterior:
     """Bayesian identification of each joint group's mean modulus and CoV from every test (module notes).
 
     Parameters
@@ -332,6 +337,8 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         `RHAT_LIMIT` and its bulk ESS at least `ESS_LIMIT` (`workbench.identify.record`), up to this many
         kept steps (default ``steps``: no extension). The result's ``steps`` are those kept.
     progress : called after each emcee step (`run_ensemble`, `workbench.progress`).
+    tolerances : the frame's manufacturing tolerances, integrated as latent factors (Laplace only,
+        `workbench.identify.members`).
 
     Raises
     ------
@@ -340,7 +347,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         moments only, a bad ``start``, more than two random joints (`likelihood_model`).
     """
     t0 = time.perf_counter()
-    lm, forward, forward_error = _likelihood(model, measured, groups, start, forward, integration, errors)
+    lm, forward, forward_error = _likelihood(model, measured, groups, start, forward, integration, errors, tolerances)
     groups = groups or joint_groups(model)
     ndim = lm.ndim
     walkers = walkers or max(24, 2 * ndim + 2)
@@ -390,7 +397,8 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         acceptance_fraction=float(np.mean(sampler.acceptance_fraction)),
         walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata,
         error_names=terms.names, error_scales=q[1, 2 * g + k:], error_scales_ci95=q[[0, 2], 2 * g + k:].T,
-        trust_reached=trust_reached, **(shared_summary(lm, chain, rng) if isinstance(lm, LaplaceLikelihood) else {}))
+        trust_reached=trust_reached, factor_names=getattr(lm, "factor_names", ()),
+        **(shared_summary(lm, chain, rng) if isinstance(lm, LaplaceLikelihood) else {}))
     if not post.converged:
         log.warning("%s: the chains have not converged (max R-hat %.3f, limit %.2f; min ESS %.0f, limit %d; "
                     "%d steps)", measured.source, rhat.max(), RHAT_LIMIT, ess.min(), ESS_LIMIT, steps)
@@ -398,17 +406,17 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
 
 
 def _likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None, start: Values | None,
-                forward: str, integration: str, errors: ErrorTerms | None
+                forward: str, integration: str, errors: ErrorTerms | None, tolerances: Tolerances | None = None
                 ) -> tuple[LikelihoodModel | LaplaceLikelihood, str, float]:
     """The likelihood `bayes_identify` samples, the name of its forward model and that model's error."""
     check_moments(measured)
     if integration not in ("auto", "quadrature", "laplace"):
         raise ValueError(f"integration: {integration!r} is not one of auto, quadrature, laplace")
-    further = errors is not None and (errors.common or errors.discrepancy)
+    further = (errors is not None and (errors.common or errors.discrepancy)) or tolerances is not None
     if integration == "quadrature" and further:
-        raise ValueError("bayes: the common and discrepancy error terms need the Laplace integration")
+        raise ValueError("bayes: the common and discrepancy error terms and tolerances need the Laplace integration")
     if integration == "laplace" or (integration == "auto" and (len(model.joint_names) > 2 or further)):
-        laplace, error = laplace_likelihood(model, measured, groups, start, errors)  # refuses published moments
+        laplace, error = laplace_likelihood(model, measured, groups, start, errors, tolerances)  # refuses moments
         return laplace, "anchored", error
     table, error = likelihood_model(model, measured, groups, start, forward)
     return table, forward, error
@@ -452,7 +460,10 @@ def _sample(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps: int, b
     x_map, initial = _start(lm, walkers, rng)
     if isinstance(lm, LaplaceLikelihood):
         lm, forward_error = lm.reanchored(x_map)
-        _, initial = _start(lm, walkers, rng)
+        x_map, initial = _start(lm, walkers, rng)
+        if lm.factor_sd.size:  # the factors' terms expanded about their first mode: once more about the next
+            lm, forward_error = lm.reanchored(x_map)
+            _, initial = _start(lm, walkers, rng)
     sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
                            max_steps=max_steps, independence=burn > 0)
     if not isinstance(lm, LaplaceLikelihood):

@@ -14,6 +14,9 @@ and priors), and three error terms:
     eps_k ~ Normal(0, 0.1^2)        and its sensitivity error: mode k's joint energies are
                                     ``exp(eps_k)`` times the model's (``ErrorTerms.sensitivity``; on
                                     request, ``--errors sensitivity``: see below)
+    m_p ~ Normal(0, tol_p^2)        with tolerances (``--tolerances``), the frame's manufacturing factors:
+                                    each member's width and thickness, each material's E and density, in
+                                    every test's rest and joint energies (`workbench.identify.members`)
 
 ``sigma_k`` is each mode's measurement error; ``s_u`` and ``s_delta`` are sampled too, each with a
 half-normal prior as the sigmas' (`workbench.identify.likelihood`: scales `COMMON_SCALE`,
@@ -37,11 +40,11 @@ horizontal mean cover (63 % to 90 % on a fresh seed). Their zero-sum pattern mov
 from the truth (a four-bolt horizontal CoV from -2 % to -40 %). So it is on request only.
 
 **Integration.** Every latent variable is integrated out by Laplace: the tests' ``z_t = log(Y_t /
-Y0)`` and ``u_t``, and the shared ``delta`` and ``eps``. Gauss-Newton with a line search finds the
+Y0)`` and ``u_t``, and the shared ``delta``, ``eps`` and ``m``. Gauss-Newton with a line search finds the
 joint mode of the integrand (`LaplaceLikelihood._mode`); its Hessian is block-arrow (each test's block
 couples to the shared latents only), so each step solves the tests' small blocks (through their K x K
 capacitance when there are more joints than modes) and one Schur complement for the shared latents
-(`workbench.identify.laplace_steps`), and
+(`workbench.identify.laplace_hessian` builds the blocks, `workbench.identify.laplace_steps` solves), and
 
     log p(f | theta) ~ log p(f, x*, s* | theta) + (n / 2) log 2 pi - (1 / 2) log det H,
 
@@ -64,9 +67,12 @@ import numpy as np
 from workbench.extraction.records import MeasuredModes
 from workbench.identify.anchored import AnchoredForward, anchored_forward, forward_at, forward_error, tracked_nominal
 from workbench.identify.data import JointGroups, Values
-from workbench.identify.laplace_steps import direct_step, gauss_newton_step, schur
+from workbench.identify.laplace_hessian import hessian_blocks
+from workbench.identify.laplace_steps import direct_step, gauss_newton_step, schur, shared_design
 from workbench.identify.likelihood import LOG_2PI, PopulationModel, gamma_log_density, prepare
+from workbench.identify.members import member_factors, with_member_derivatives
 from workbench.model.structure import Structure, structure_at_moduli
+from workbench.model.tolerance import Tolerances
 
 __all__ = ["ErrorTerms", "ERROR_TERMS", "COMMON_BOUNDS", "DISCREPANCY_BOUNDS", "COMMON_SCALE", "DISCREPANCY_SCALE",
            "TRUST_RADIUS", "SENSITIVITY_SD", "shared_summary",
@@ -176,6 +182,8 @@ class _Local:
     grad: np.ndarray
     grad_d: np.ndarray
     share: np.ndarray | None = None  # (N, T, K) dlog f / deps_k, with the sensitivity term
+    design: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (N, T, K, S) df/ds
+    factors: tuple[np.ndarray, np.ndarray] | None = None  # dlambda/dm and its joints' part (`factor_terms`)
 
     @property
     def objective(self) -> np.ndarray:
@@ -194,7 +202,7 @@ class LaplaceLikelihood(PopulationModel):
     f_obs, mask, fbar, joint_group, reference_pa : as in `LikelihoodModel`.
     z_start : (T, r) the anchors, Newton's starting points.
     terms : the error terms beside the measurement error.
-    refit : the forward model and its error at new anchors (T, r) (`reanchored`).
+    refit : the forward model and its error at new anchors (T, r) and factors' centre (`reanchored`).
     """
 
     table: AnchoredForward
@@ -205,9 +213,13 @@ class LaplaceLikelihood(PopulationModel):
     reference_pa: np.ndarray
     z_start: np.ndarray
     terms: ErrorTerms = field(default_factory=ErrorTerms)
-    refit: Callable[[np.ndarray], tuple[AnchoredForward, float]] | None = field(default=None, compare=False,
+    refit: Callable[[np.ndarray, np.ndarray | None], tuple[AnchoredForward, float]] | None = field(default=None,
+                                                                                                 compare=False,
                                                                                repr=False)
     trust_centre: np.ndarray | None = None
+    factor_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the manufacturing factors' prior sds (P,)
+    factor_centre: np.ndarray = field(default_factory=lambda: np.zeros(0))  # their expansion point (`reanchored`)
+    factor_names: tuple[str, ...] = ()
 
     @property
     def mean_bounds(self) -> np.ndarray:
@@ -262,17 +274,26 @@ class LaplaceLikelihood(PopulationModel):
         ``delta_k``, then with the sensitivity term each mode's ``eps_k``; (N, 0) without the discrepancy.
         """
         mode = self._mode(np.atleast_2d(np.asarray(theta, float)))
-        return mode.shared_mode, np.sqrt(np.clip(np.diagonal(mode.shared_cov, axis1=-2, axis2=-1), 0.0, None))
+        return (mode.shared_mode + self._offset(mode.shared_mode.shape[1]),
+                np.sqrt(np.clip(np.diagonal(mode.shared_cov, axis1=-2, axis2=-1), 0.0, None)))
+
+    def _offset(self, count: int) -> np.ndarray:
+        """(S,) each shared latent's expansion point: the factors' ``factor_centre``, 0 for the rest."""
+        return np.concatenate([np.zeros(count - self.factor_centre.size), self.factor_centre])
 
     def reanchored(self, theta: np.ndarray) -> tuple[LaplaceLikelihood, float]:
         """The likelihood with every test's forward model anchored at its latent mode under ``theta`` (D,),
-        and the new forward model's error (`workbench.identify.anchored`).
+        and the new forward model's error (`workbench.identify.anchored`); the manufacturing factors'
+        terms expanded again about their mode (`workbench.identify.members.member_factors`).
         """
         if self.refit is None:
             raise ValueError("reanchored: this likelihood was built without its model (laplace_likelihood builds it)")
         theta = np.atleast_2d(np.asarray(theta, float))[:1]
-        forward, error = self.refit(self._mode(theta).z[0])
-        return replace(self, table=forward, z_start=forward.anchor, trust_centre=theta[0, :self.n_groups]), error
+        mode = self._mode(theta)
+        centre = self.factor_centre + mode.shared_mode[0, mode.shared_mode.shape[1] - self.factor_centre.size:]
+        forward, error = self.refit(mode.z[0], centre if centre.size else None)
+        return replace(self, table=forward, z_start=forward.anchor, trust_centre=theta[0, :self.n_groups],
+                       factor_centre=centre), error
 
     def _population(self, theta: np.ndarray) -> tuple[_Population, np.ndarray]:
         """The integrand's population terms of ``theta`` (N, D), and the normalising constants (N, T)."""
@@ -285,6 +306,8 @@ class LaplaceLikelihood(PopulationModel):
             inv_d = np.repeat(np.exp(-2.0 * extra[:, -1:]), k, axis=1)
             if self.terms.sensitivity:
                 inv_d = np.concatenate([inv_d, np.full((theta.shape[0], k), SENSITIVITY_SD ** -2)], axis=1)
+            factors = np.broadcast_to(self.factor_sd ** -2, (theta.shape[0], self.factor_sd.size))
+            inv_d = np.concatenate([inv_d, factors], axis=1)
         return _Population(a, log_th, w, inv_u, inv_d), const + norm
 
     @property
@@ -297,11 +320,12 @@ class LaplaceLikelihood(PopulationModel):
         With the sensitivity term, mode k's joint energies are scaled by ``exp(eps_k)``:
         ``lambda_tk = c_tk + exp(eps_k) sum_j L_tkj exp(z_tj - zbar_tj)``.
         """
-        k = self.fbar.size
+        k, n_m = self.fbar.size, self.factor_sd.size
+        m = x.delta[:, x.delta.shape[1] - n_m:] if n_m else None
         if grad or self._sensitive:
-            g, d = self.table(x.z, grad=True)
+            g, d = self.table(x.z, grad=True, m=m)
         else:
-            g, d = self.table(x.z), None
+            g, d = self.table(x.z, m=m), None
         lam, share = (2.0 * math.pi * g) ** 2, None
         if self._sensitive and d is not None:
             scale = np.exp(x.delta[:, None, k:])  # (N, 1, K)
@@ -317,8 +341,9 @@ class LaplaceLikelihood(PopulationModel):
         shared = np.zeros(f.shape[0])
         if pop.inv_u is not None:
             per_test = per_test - 0.5 * x.u * x.u * pop.inv_u
+        prior_at = x.delta + self._offset(x.delta.shape[1])  # the factors from the drawing, not their centre
         if pop.inv_d is not None:
-            shared = -0.5 * np.sum(x.delta * x.delta * pop.inv_d, axis=-1)
+            shared = -0.5 * np.sum(prior_at * prior_at * pop.inv_d, axis=-1)
         if not grad or d is None:
             return _Local(per_test, shared, f, res, np.zeros(0), np.zeros(0), np.zeros(0), e, np.zeros(0), np.zeros(0))
         wr = pop.w * res
@@ -329,45 +354,15 @@ class LaplaceLikelihood(PopulationModel):
             jac = np.concatenate([jac, f[..., None]], axis=-1)
         on_delta = np.sum(wr * f, axis=1)  # df/ddelta = f, df/deps = f share
         grad_d = on_delta if share is None else np.concatenate([on_delta, np.sum(wr * f * share, axis=1)], axis=1)
+        design, factors = shared_design(f, share), None
+        if n_m:  # df/dm = f (dlambda/dm) / (2 lambda)
+            factors = self.table.factor_terms(x.z)
+            on_m = f[..., None] * factors[0] / (2.0 * lam[..., None])
+            design = np.concatenate([design, on_m], axis=-1)
+            grad_d = np.concatenate([grad_d, np.einsum("ntk,ntkp->np", wr, on_m)], axis=1)
         if pop.inv_d is not None:
-            grad_d = grad_d - x.delta * pop.inv_d
-        return _Local(per_test, shared, f, res, lam, d, jac, e, grad_x, grad_d, share)
-
-    def _hessian(self, local: _Local, pop: _Population, exact: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Minus the Hessian: each test's block (N, T, p, p), its coupling to the shared latents (N, T, S, p)
-        and their own block from the data (N, S, S) (`workbench.identify.laplace_steps`). ``exact``: with the
-        residual's curvature terms (the Laplace determinant's); otherwise Gauss-Newton's, positive definite
-        (Newton's direction).
-        """
-        r, k = self.joint_group.size, self.fbar.size
-        w, f, res, jz, share = pop.w, local.f, local.res, local.jac[..., :r], local.share
-        q = w * (f - res) if exact else w * f  # d2f/du2 = d2f/ddelta2 = d2f/du ddelta = f
-        hess = np.swapaxes(jz * w[..., None], -1, -2) @ jz + local.e[..., None] * np.eye(r)
-        if exact:  # d2f/dz_i dz_j = delta_ij df_j - df_i d_j / (2 lambda), lambda = (2 pi f / m)^2
-            wr = w * res
-            hess = hess + np.swapaxes(jz * (wr / (2.0 * local.lam))[..., None], -1, -2) @ local.d
-            hess = hess - (wr[..., None, :] @ jz)[..., 0, :][..., None] * np.eye(r)
-        if pop.inv_u is not None:
-            h_zu = np.sum(q[..., None] * jz, axis=-2)  # (N, T, r)
-            h_uu = np.sum(q * f, axis=-1) + pop.inv_u  # (N, T)
-            hess = np.concatenate([np.concatenate([hess, h_zu[..., None]], axis=-1),
-                                   np.concatenate([h_zu, h_uu[..., None]], axis=-1)[..., None, :]], axis=-2)
-        coupling = q[..., None] * local.jac  # (N, T, K, p); then eps's: d2f/deps dz = df/dz (1 - share),
-        if share is not None:  # d2f/deps du = f share
-            on_z = w * (f * share - res * (1.0 - share)) if exact else w * f * share
-            on_u = q * share
-            eps = local.jac * np.concatenate([np.broadcast_to(on_z[..., None], jz.shape), on_u[..., None]], axis=-1)[
-                ..., :local.jac.shape[-1]]
-            coupling = np.concatenate([coupling, eps], axis=-2)
-        s = coupling.shape[-2]
-        block = np.zeros((f.shape[0], s, s))
-        diag = np.arange(k)
-        block[:, diag, diag] = np.sum(q * f, axis=1)
-        if share is not None:  # d2f/ddelta deps = f share; d2f/deps2 = f (share - share^2)
-            block[:, diag, k + diag] = block[:, k + diag, diag] = np.sum(q * f * share, axis=1)
-            curvature = w * f * f * share * share - (w * res * f * (share - share * share) if exact else 0.0)
-            block[:, k + diag, k + diag] = np.sum(curvature, axis=1)
-        return hess, coupling, block
+            grad_d = grad_d - prior_at * pop.inv_d
+        return _Local(per_test, shared, f, res, lam, d, jac, e, grad_x, grad_d, share, design, factors)
 
     def _mode(self, theta: np.ndarray) -> _Mode:
         """The integrand's mode in every test's ``(z_t, u_t)`` and the shared delta, and the Laplace terms there.
@@ -382,7 +377,7 @@ class LaplaceLikelihood(PopulationModel):
         """
         pop, constants = self._population(theta)
         n, (tests, k), r = theta.shape[0], self.f_obs.shape, self.joint_group.size
-        shared_count = k * (2 if self._sensitive else 1)
+        shared_count = k * (2 if self._sensitive else 1) + self.factor_sd.size
         x = _Latent(np.broadcast_to(self.z_start, (n,) + self.z_start.shape).copy(), np.zeros((n, tests)),
                     np.zeros((n, shared_count)))
         active = np.arange(n)
@@ -394,7 +389,7 @@ class LaplaceLikelihood(PopulationModel):
                     [local.e, np.broadcast_to(p.inv_u[:, :, None], local.e.shape[:-1] + (1,))], axis=-1)
                 step_x, step_d = gauss_newton_step(local, p.w, diagonal, p.inv_d)
             else:
-                step_x, step_d = direct_step(local, *self._hessian(local, p, exact=False), p.inv_d)
+                step_x, step_d = direct_step(local, *hessian_blocks(local, p.w, p.inv_u, r, exact=False), p.inv_d)
             decrement = np.sum(local.grad * step_x, axis=(1, 2)) + np.sum(local.grad_d * step_d, axis=1)
             step = _Latent(step_x[..., :r], step_x[..., r] if p.inv_u is not None else np.zeros(here.u.shape), step_d)
             largest_z = np.max(np.abs(step.z), axis=(1, 2))
@@ -424,7 +419,7 @@ class LaplaceLikelihood(PopulationModel):
         """The Laplace terms (module docstring) at the integrand's mode ``x`` (`_mode`), with the exact Hessian."""
         n = x.delta.shape[0]
         local = self._evaluate(pop, x, grad=True)
-        hess, coupling, block = self._hessian(local, pop, exact=True)
+        hess, coupling, block = hessian_blocks(local, pop.w, pop.inv_u, self.joint_group.size, exact=True)
         sign, log_det = np.linalg.slogdet(hess)
         per_test = (local.per_test + constants
                     + np.where(sign > 0, 0.5 * hess.shape[-1] * LOG_2PI - 0.5 * log_det, -np.inf))
@@ -441,27 +436,42 @@ class LaplaceLikelihood(PopulationModel):
 
 
 def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups | None = None,
-                       start: Values | None = None, terms: ErrorTerms | None = None) -> tuple[LaplaceLikelihood, float]:
+                       start: Values | None = None, terms: ErrorTerms | None = None,
+                       tolerances: Tolerances | None = None) -> tuple[LaplaceLikelihood, float]:
     """The `LaplaceLikelihood` of a campaign, for any number of joints, and its forward model's error.
 
     ``terms``: the error terms beside the measurement error (default both, `ErrorTerms`).
+    ``tolerances``: the frame's manufacturing tolerances, its factors then shared latents of the forward
+    model (`workbench.identify.members`); with the discrepancy term, without the sensitivity term.
 
     Raises
     ------
     ValueError
-        As `workbench.identify.likelihood.prepare`.
+        As `workbench.identify.likelihood.prepare`; tolerances on a matrix model or with those terms.
     """
+    terms = terms or ErrorTerms()
+    if tolerances is not None and (not terms.discrepancy or terms.sensitivity):
+        raise ValueError("tolerances: they need the discrepancy term and exclude the sensitivity term")
     p = prepare(model, measured, groups, start)
     at = structure_at_moduli(model, p.reference_pa[p.joint_group])
+    factors = member_factors(at, tolerances) if tolerances is not None else None
     nominal = tracked_nominal(at, p.modes)  # one solve serves the anchors and the error check
-    forward = anchored_forward(at, nominal, p.f_obs, p.mask, p.modes)
 
-    def refit(anchors: np.ndarray) -> tuple[AnchoredForward, float]:
-        moved = forward_at(at, nominal, p.modes, anchors)
-        return moved, forward_error(at, nominal, moved, p.modes)
+    forward = anchored_forward(at, nominal, p.f_obs, p.mask, p.modes)
+    forward = forward if factors is None else with_member_derivatives(forward, factors, nominal, p.modes)
+
+    def refit(anchors: np.ndarray, centre: np.ndarray | None) -> tuple[AnchoredForward, float]:
+        there = factors if centre is None or tolerances is None else member_factors(at, tolerances, centre)
+        base = at if there is None else there.base
+        moved = forward_at(base, nominal, p.modes, anchors)
+        moved = moved if there is None else with_member_derivatives(moved, there, nominal, p.modes)
+        return moved, forward_error(base, nominal, moved, p.modes)
 
     lm = LaplaceLikelihood(forward, p.f_obs, p.mask, np.asarray(measured.mean_hz, float), p.joint_group,
-                           p.reference_pa, forward.anchor, terms or ErrorTerms(), refit)
+                           p.reference_pa, forward.anchor, terms, refit,
+                           factor_sd=np.zeros(0) if factors is None else factors.prior_sd,
+                           factor_centre=np.zeros(0) if factors is None else factors.centre,
+                           factor_names=() if factors is None else factors.names)
     return lm, forward_error(at, nominal, forward, p.modes)
 
 
@@ -481,8 +491,9 @@ def shared_summary(lm: LaplaceLikelihood, chain: np.ndarray, rng: np.random.Gene
     draws = flat[rng.choice(flat.shape[0], min(SUMMARY_DRAWS, flat.shape[0]), replace=False)]
     mode, sd = lm.shared_latents(draws)
     q = np.percentile(mode + sd * rng.standard_normal(mode.shape), [2.5, 50.0, 97.5], axis=0)
-    k = lm.fbar.size
-    for name, part in (("discrepancy", slice(0, k)), ("sensitivity", slice(k, 2 * k))):
+    k, n_m = lm.fbar.size, lm.factor_sd.size
+    parts = [("discrepancy", slice(0, k))] + ([("sensitivity", slice(k, 2 * k))] if lm.terms.sensitivity else [])
+    for name, part in parts + [("factors", slice(q.shape[1] - n_m, q.shape[1]))]:
         if q[1, part].size:
             out[name], out[f"{name}_ci95"] = q[1, part], q[[0, 2]][:, part].T
     return out

@@ -1,11 +1,12 @@
 """The linear algebra of the Laplace likelihood's block-arrow system (`workbench.identify.laplace`).
 
 Minus the Hessian of the log integrand in every test's latents ``x_t = (z_t, u_t)`` (p each) and the
-shared latents ``s`` (S: each mode's discrepancy shift ``delta_k``, and with the sensitivity term each
-mode's ``eps_k``) is block-arrow: each test's block ``H_t`` (p x p) couples only to ``s``, through
-``C_t`` (S x p); ``s``'s own block is ``B`` (S x S, from the data) plus the prior's diagonal ``D``. So
-Newton's step and the Laplace determinant need the tests' small solves and one S x S Schur complement
-``S = B + D - sum_t C_t H_t^-1 C_t^T``.
+shared latents ``s`` (S: each mode's discrepancy shift ``delta_k``, with the sensitivity term each
+mode's ``eps_k``, with tolerances the manufacturing factors ``m``) is block-arrow: each test's block
+``H_t`` (p x p) couples only to ``s``, through ``C_t`` (S x p); ``s``'s own block is ``B`` (S x S, from
+the data) plus the prior's diagonal ``D``. So Newton's step and the Laplace determinant need the tests'
+small solves and one S x S Schur complement ``S = B + D - sum_t C_t H_t^-1 C_t^T``
+(`workbench.identify.laplace_hessian` builds the blocks).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ __all__ = ["Local", "shared_design", "gauss_newton_step", "direct_step", "schur"
 class Local(Protocol):
     """What the steps read of the log integrand at a point (`workbench.identify.laplace._Local`): model
     frequencies ``f`` (N, T, K), ``jac`` df/dx_t (N, T, K, p), ascent directions ``grad`` (N, T, p) in
-    ``x_t`` and ``grad_d`` (N, S) in ``s``, ``share`` dlog f / deps_k (N, T, K) or None.
+    ``x_t`` and ``grad_d`` (N, S) in ``s``, ``share`` dlog f / deps_k (N, T, K) or None, ``design`` df/ds (N, T, K, S).
     """
 
     @property
@@ -33,6 +34,8 @@ class Local(Protocol):
     def grad_d(self) -> np.ndarray: ...
     @property
     def share(self) -> np.ndarray | None: ...
+    @property
+    def design(self) -> np.ndarray: ...
 
 
 def shared_design(f: np.ndarray, share: np.ndarray | None) -> np.ndarray:
@@ -67,7 +70,7 @@ def gauss_newton_step(local: Local, w: np.ndarray, diagonal: np.ndarray, inv_d: 
     if inv_d is None:
         step_d = np.zeros(local.grad_d.shape)
     else:
-        v = root_w[..., None] * shared_design(local.f, local.share)  # (N, T, K, S)
+        v = root_w[..., None] * local.design  # (N, T, K, S)
         c_v = c_inv @ v
         matrix = over_tests(np.swapaxes(v, -1, -2), c_v) + inv_d[..., None] * np.eye(inv_d.shape[-1])
         rhs = local.grad_d - over_tests(np.swapaxes(v, -1, -2), y[..., None])[..., 0]
