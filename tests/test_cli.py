@@ -327,3 +327,36 @@ def test_identify_leaves_out_a_mode_found_in_one_test_with_a_warning(tmp_path, c
     without = json.loads((tmp_path / "b" / "identification.json").read_text())
     assert without["modes_used"] == [1, 2, 4]
     assert record["joints"] == without["joints"]
+
+
+def test_identify_tolerances_are_checked_before_any_work(tmp_path, capsys):
+    campaign = _modes_campaign(tmp_path / "c", 6)
+    for bad, says in ((["--method", "bayes", "--tolerances", "0.003,x"], "--tolerances: '0.003,x': could not convert"),
+                      (["--method", "bayes", "--tolerances", "0.5"], "section_sd 0.5 is not in (0, 0.1]"),
+                      (["--method", "moments", "--tolerances", "0.003"], "--tolerances needs --method bayes"),
+                      (["--method", "bayes", "--errors", "sensitivity", "--tolerances", "0.003"],
+                       "without the sensitivity term")):
+        out = tmp_path / "id"
+        assert main(["identify", str(campaign), *bad, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err, (bad, err)
+        assert not out.exists()
+
+
+@pytest.mark.slow
+def test_identify_bayes_with_tolerances_reports_each_manufacturing_factor(tmp_path):
+    import json
+
+    from workbench.model.frame_file import read_frame
+
+    campaign = _modes_campaign(tmp_path / "c", 7)
+    out = tmp_path / "id"
+    assert main(["identify", str(campaign), "--method", "bayes", "--steps", "40", "--max-steps", "40",
+                 "--allow-bounds", "--tolerances", "0.003,0.01", "--out", str(out)]) == 0
+    factors = json.loads((out / "identification.json").read_text())["errors"]["manufacturing"]
+    frame = read_frame(campaign / "frame.toml")
+    expected = [f"{m}.{q}" for m in frame.materials for q in ("youngs_modulus", "density")] + \
+        [f"{m.name}.{q}" for m in frame.members for q in ("width", "thickness")]
+    assert list(factors) == expected
+    for entry in factors.values():  # log factors within a few prior sds of the drawing
+        assert entry["ci95"][0] <= entry["value"] <= entry["ci95"][1] and abs(entry["value"]) < 0.05

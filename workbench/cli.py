@@ -15,23 +15,14 @@ import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
-from workbench.identify.bayes import Posterior, bayes_identify
-from workbench.identify.data import check_moments, usable_modes
 from workbench.identify.laplace import ERROR_TERMS
-from workbench.identify.moments import MomentFit, moment_matching
-from workbench.identify.record import (
-    ESS_LIMIT,
-    RHAT_LIMIT,
-    bound_failures,
-    identification_record,
-    sampler_diagnostics,
-)
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
 from workbench.model.matrix_file import is_matrix_model, model_files, read_matrix_model
 from workbench.model.matrix_model import MatrixModel
-from workbench.model.structure import Structure, structure_modes, structure_of
+from workbench.model.structure import Structure, structure_modes
+from workbench.model.tolerance import Tolerances
 from workbench.progress import Progress
 from workbench.report.tables import declared_files
 from workbench.uq.limits import smr1_cov_warning
@@ -75,6 +66,16 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
     return value
+
+
+def _tolerances(text: str) -> Tolerances:
+    try:
+        sds = [float(v) for v in text.split(",")]
+        if len(sds) not in (1, 2):
+            raise ValueError("give one or two relative sds")
+        return Tolerances(sds[0], sds[-1])
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
 
 
 def _structure(path: Path) -> Structure:
@@ -173,62 +174,15 @@ def _extract(args: argparse.Namespace, out: OutputSet) -> str:
 
 
 def _identify(args: argparse.Namespace, out: OutputSet) -> str:
-    from workbench.identify.pairing import pair_by_mac
-    from workbench.io.campaign import load_campaign
-    from workbench.workflow.measured import measured_modes
+    from workbench.workflow.identification import IdentifyOptions, identify_campaign
 
-    campaign = load_campaign(args.campaign)
-    data, dropped = usable_modes(measured_modes(campaign, args.count, "identify from"))
-    if dropped:
-        warnings.warn(f"{args.campaign}: modes {dropped} were extracted in fewer than 2 tests: left out "
-                      "(modes_used in identification.json lists the modes used)", stacklevel=1)
-    check_moments(data)  # refuse unusable moments before the method's own checks, as before any work
-    if args.method == "bayes" and not data.has_tests:
-        raise ValueError(f"{args.campaign}: bayes needs every test's frequencies (modes.csv or FRFs); this "
-                         "campaign has only published moments (moments.csv): use --method moments")
-    model = structure_of(campaign.frame)
-    data = pair_by_mac(model, data)  # with measured shapes, mode i is the model mode of its shape, not the i-th
-    start = time.perf_counter()
-    files: dict[str, str | bytes] = {}
-    fit: MomentFit | Posterior
-    if args.method == "moments":
-        fit = moment_matching(model, data, seed=args.seed)
-    else:
-        from workbench.workflow.posterior import POSTERIOR_FILE, posterior_netcdf
-
-        fit = posterior = bayes_identify(model, data, seed=args.seed, steps=args.steps,
-                                         max_steps=max(args.max_steps, args.steps), errors=ERROR_TERMS[args.errors],
-                                         progress=_progress())
-        files[POSTERIOR_FILE] = posterior_netcdf(posterior)  # through write_outputs below: all files or none
-    wall = time.perf_counter() - start
-    record = identification_record(campaign.name, args.method, campaign.frame, fit, data.modes, wall)
-    failures = bound_failures(record, fit)
-    if failures and not args.allow_bounds:
-        raise ValueError(f"{args.campaign}: failed identification, {failures[0]}"
-                         + (f" (and {len(failures) - 1} more joints)" if len(failures) > 1 else "")
-                         + ": the data do not place it; --allow-bounds writes it flagged \"at_bound\": true")
-    for failure in failures:
-        warnings.warn(f"{args.campaign}: {failure} (written with \"at_bound\": true)", stacklevel=1)
-    diagnostics = sampler_diagnostics(fit)
-    if diagnostics is not None and isinstance(fit, Posterior):
-        record["diagnostics"] = diagnostics
-        record["errors"] = fit.error_records()
-        if not diagnostics["converged"]:
-            unsettled = (f"the chains have not converged in {fit.steps} steps (max R-hat "
-                         f"{diagnostics['rhat_max']:.3f}, limit {RHAT_LIMIT}; min ESS {diagnostics['ess_min']:.0f}, "
-                         f"limit {ESS_LIMIT})")
-            if not args.allow_bounds:
-                raise ValueError(f"{args.campaign}: failed identification, {unsettled}: raise --max-steps, or "
-                                 "--allow-bounds writes it with \"converged\": false")
-            warnings.warn(f"{args.campaign}: {unsettled}: identification.json says \"converged\": false",
-                          stacklevel=1)
-    files["identification.json"] = json_text(record)
-    out.commit(files)
+    options = IdentifyOptions(args.method, args.count, args.seed, args.steps, args.max_steps, args.errors,
+                              args.tolerances, args.allow_bounds)
+    done = identify_campaign(args.campaign, options, _progress())
+    out.commit(done.files)
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
-                        for name, j in record["joints"].items())
-    return f"{args.method} on {campaign.name!r} ({data.source}): {summary}; written to {args.out}"
-
-
+                        for name, j in done.record["joints"].items())
+    return f"{args.method} on {done.campaign!r} ({done.source}): {summary}; written to {args.out}"
 def _notify(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
@@ -366,6 +320,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--errors", choices=sorted(ERROR_TERMS), default="full",
                    help="bayes: error terms besides each mode's measurement error: full (common error, discrepancy per "
                         "mode; default), common, discrepancy, none, sensitivity (full, joint energies uncertain)")
+    p.add_argument("--tolerances", type=_tolerances, metavar="SECTION[,MATERIAL]",
+                   help="bayes: the frame's manufacturing tolerances as relative sds, integrated as latent factors: "
+                        "each member's width and thickness, each material's E and density (default: the first)")
 
     p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate,
                 ("moments.csv", "run.json"))
