@@ -15,6 +15,10 @@ which part of the data sets that mean, on the development seed (18) only. Three 
   width and thickness, each material's E and density, a few tenths of a percent: the truth's record),
   Euler-Bernoulli still; ``timo_asbuilt`` both (what is left is the generator's mesh, the circle fit
   and the estimator). Also a diagnosis only.
+- ``timo_tolerances``: the Timoshenko frame as drawn (no truth read) with its manufacturing tolerances
+  stated (0.3 %, the proving ground's drawing) and integrated as latent factors (`workbench identify
+  --tolerances`, `workbench.identify.members`): a remedy, as a user would run it.
+  ``timo_tolerances_x0.5`` and ``_x2`` state the tolerance at half and twice the drawing's.
 
 Prints one JSON line per campaign and fit: each group's mean modulus, its 95 % interval and the
 campaign's sample mean, all in % of the group's law's mean; the discrepancy's scale and each mode's
@@ -32,7 +36,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
-from estimators_proving import COUNT, DESIGNS
+from estimators_proving import COUNT, DESIGNS, NUISANCES
 
 from workbench.identify import laplace
 from workbench.identify.bayes import bayes_identify
@@ -40,6 +44,7 @@ from workbench.identify.data import joint_groups, usable_modes
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.identify.pairing import pair_by_mac
 from workbench.model.structure import structure_of
+from workbench.model.tolerance import Tolerances
 from workbench.proving.cases import CaseSpec, case_campaign
 from workbench.proving.nuisances import built_frame
 from workbench.workflow.measured import measured_modes
@@ -62,7 +67,11 @@ def fit_one(design: str, rep: int, fit: str) -> dict:
     laplace.DISCREPANCY_BOUNDS = WIDE if fit == "wide" else kept  # read when the posterior's bounds are built
     try:
         t0 = time.perf_counter()
-        post = bayes_identify(model, data, groups, seed=rep, steps=1000, max_steps=8000, errors=ERROR_TERMS["full"])
+        misstated = float(fit.split("_x")[1]) if "_x" in fit else 1.0  # a drawing's tolerance stated wrong
+        stated = Tolerances(misstated * NUISANCES.section_sd, misstated * NUISANCES.material_sd) \
+            if fit.startswith("timo_tolerances") else None
+        post = bayes_identify(model, data, groups, seed=rep, steps=1000, max_steps=8000, errors=ERROR_TERMS["full"],
+                              tolerances=stated)
         wall = time.perf_counter() - t0
     finally:
         laplace.DISCREPANCY_BOUNDS = kept
@@ -83,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--design", choices=list(DESIGNS), default="two")
     parser.add_argument("--reps", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
-    parser.add_argument("--fits", nargs="+", choices=("default", "wide", "timo", "asbuilt", "timo_asbuilt"),
+    parser.add_argument("--fits", nargs="+", choices=("default", "wide", "timo", "asbuilt", "timo_asbuilt",
+                                                      "timo_tolerances", "timo_tolerances_x0.5", "timo_tolerances_x2"),
                         default=["default", "wide", "timo"])
     args = parser.parse_args(argv)
     for rep in args.reps:

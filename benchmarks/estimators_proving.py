@@ -48,14 +48,17 @@ from workbench.identify.laplace import ERROR_TERMS
 from workbench.identify.moments import moment_matching
 from workbench.identify.pairing import pair_by_mac
 from workbench.model.structure import structure_of
+from workbench.model.tolerance import Tolerances
 from workbench.proving.cases import CaseSpec, case_campaign
+from workbench.proving.nuisances import NuisanceSettings
 from workbench.workflow.execution import mapper
 from workbench.workflow.measured import measured_modes
 
 DESIGNS = {"two": "two_bolt", "four": "four_bolt"}
 COUNT = 8  # modes used: the first eight, all in the band on both frames
 # moment matching; Bayes with the error terms, and without; and with each mode's sensitivity error too
-ESTIMATORS = ("moments", "full", "none", "sensitivity")
+NUISANCES = NuisanceSettings()  # the campaigns' (`case_campaign`'s defaults)
+ESTIMATORS = ("moments", "full", "none", "sensitivity", "tolerances")
 
 
 def wilson(hits: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -69,12 +72,12 @@ def wilson(hits: int, n: int, z: float = 1.959964) -> tuple[float, float]:
 
 
 def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int,
-                 estimators: tuple[str, ...] = ESTIMATORS) -> list[dict]:
+                 estimators: tuple[str, ...] = ESTIMATORS, beam_theory: str = "euler-bernoulli") -> list[dict]:
     """The ``estimators`` on one proving-ground campaign: one row per estimator, group and parameter."""
     case_seed = int(np.random.SeedSequence((seed, list(DESIGNS).index(design), rep)).generate_state(1)[0])
     spec = CaseSpec(rep, case_seed, DESIGNS[design], "identification", design="paper")
     campaign, truth = case_campaign(spec)
-    frame = replace(campaign.frame, beam_theory="euler-bernoulli")  # the bundled file's theory: misspecified
+    frame = replace(campaign.frame, beam_theory=beam_theory)  # Euler-Bernoulli, the bundled file's: misspecified
     model = structure_of(frame)
     t0 = time.perf_counter()
     try:
@@ -90,10 +93,13 @@ def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int,
     if "moments" in estimators:
         fits["moments"] = moment_matching(model, data, groups, seed=rep)
         walls["moments"] = time.perf_counter() - t0
-    for terms in [e for e in ("full", "none", "sensitivity") if e in estimators]:
+    for terms in [e for e in ("full", "none", "sensitivity", "tolerances") if e in estimators]:
         t0 = time.perf_counter()
+        # "tolerances": the default terms and the drawing's tolerances, stated as the proving ground's
+        # manufacturing sds (what a user reads off a drawing and a material certificate)
+        stated = Tolerances(NUISANCES.section_sd, NUISANCES.material_sd) if terms == "tolerances" else None
         fits[f"bayes_{terms}"] = bayes_identify(model, data, groups, seed=rep, steps=steps, max_steps=max_steps,
-                                                errors=ERROR_TERMS[terms])
+                                                errors=ERROR_TERMS.get(terms, ERROR_TERMS["full"]), tolerances=stated)
         walls[f"bayes_{terms}"] = time.perf_counter() - t0
     rows = []
     for g, name in enumerate(groups.groups):
@@ -133,7 +139,7 @@ def _error_terms(fit: Any) -> dict:
             "discrepancy": None if fit.discrepancy is None else [float(v) for v in fit.discrepancy]}
 
 
-def _task(_shared: None, job: tuple[str, int, int, int, int, tuple[str, ...]]) -> list[dict]:
+def _task(_shared: None, job: tuple[str, int, int, int, int, tuple[str, ...], str]) -> list[dict]:
     """`one_campaign` as a task of the Dask execution layer: its seeds are its own, whoever runs it."""
     return one_campaign(*job)
 
@@ -195,6 +201,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--estimators", nargs="+", choices=ESTIMATORS, default=list(ESTIMATORS[:3]),
                         help="which estimators (default the first three): moments, Bayes with the terms (full), "
                         "without (none), with the sensitivity error too (sensitivity)")
+    parser.add_argument("--beam-theory", choices=("euler-bernoulli", "timoshenko"), default="euler-bernoulli",
+                        help="the nominal frame's beam theory (default Euler-Bernoulli, the bundled files')")
     parser.add_argument("--scheduler", help="a running Dask scheduler (tcp://host:8786) instead of local workers")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -206,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     with mapper(args.workers, args.scheduler) as run:
         for start in range(0, len(pending), batch):
             t0 = time.perf_counter()
-            jobs = [(d, r, args.seed, args.steps, args.max_steps, tuple(args.estimators))
+            jobs = [(d, r, args.seed, args.steps, args.max_steps, tuple(args.estimators), args.beam_theory)
                     for d, r in pending[start:start + batch]]
             results = run(_task, jobs, "campaigns", None)
             with rows_file.open("a") as f:

@@ -7,6 +7,15 @@ mean is the pipeline's own error. On the development seed's campaigns 0-5 (four-
 less, against 0.2-0.6 % with the bundled Euler-Bernoulli file. The bounds below were frozen from those six
 before this test's campaign (7) was fitted: 1.5 points (about five times the largest), and a discrepancy scale under
 0.2 % (the smallest the misspecified file needed).
+
+The second test runs it as a user would, without reading the truth: the Timoshenko frame as drawn, with the
+drawing's tolerances integrated as latent factors (`workbench.identify.members`, ``timo_tolerances``). On the
+development seed's twelve campaigns (0-5 of both designs) the estimates landed 0.0-4.4 points from the sample means
+(all but two under 0.6) and the discrepancy scale at 0.05 % or less. Frozen from those before campaign 7 was
+fitted: 5 points, and 0.1 %. Campaign 7 failed them (6.8 points off, interval +-1.8 %) with the factors' terms
+expanded about the drawing only; they are now expanded again where the posterior puts the factors
+(`workbench.identify.laplace.LaplaceLikelihood.reanchored`), a change made after looking at campaign 7, so the test
+fits campaign 8, which no step saw, with the same bounds.
 """
 
 from __future__ import annotations
@@ -22,18 +31,27 @@ pytestmark = pytest.mark.slow
 CAMPAIGN = 7  # not one of the six the bounds came from
 MEAN_BOUND = 1.5  # points of the group's law's mean
 DISCREPANCY_BOUND = 0.2  # %
+TOLERANCES_MEAN_BOUND = 5.0  # points, with the tolerances integrated (module docstring)
+TOLERANCES_DISCREPANCY_BOUND = 0.1  # %
 
 
-@pytest.fixture(scope="module")
-def fit():
+TOLERANCES_CAMPAIGN = 8
+
+
+def _fit(kind: str, campaign: int = CAMPAIGN) -> dict:
     sys.path.insert(0, str(REPO / "benchmarks"))  # the script imports its sibling estimators_proving
     try:
         spec = importlib.util.spec_from_file_location("bayes_bias_source", REPO / "benchmarks" / "bayes_bias_source.py")
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
-        return module.fit_one("four", CAMPAIGN, "timo_asbuilt")
+        return module.fit_one("four", campaign, kind)
     finally:
         sys.path.remove(str(REPO / "benchmarks"))
+
+
+@pytest.fixture(scope="module")
+def fit():
+    return _fit("timo_asbuilt")
 
 
 def test_with_the_generators_physics_each_group_lands_on_its_sample_mean(fit):
@@ -43,3 +61,12 @@ def test_with_the_generators_physics_each_group_lands_on_its_sample_mean(fit):
         assert abs(row["mean"] - row["sample"]) < MEAN_BOUND, (group, row)
         assert row["low"] <= row["sample"] <= row["high"], (group, row)
     assert fit["discrepancy_scale_pct"] < DISCREPANCY_BOUND, fit
+
+
+def test_with_the_drawings_tolerances_integrated_each_group_lands_near_its_sample_mean():
+    fit = _fit("timo_tolerances", TOLERANCES_CAMPAIGN)
+    assert fit["converged"]
+    for group in ("vertical", "horizontal"):
+        row = fit[group]
+        assert abs(row["mean"] - row["sample"]) < TOLERANCES_MEAN_BOUND, (group, row)
+    assert fit["discrepancy_scale_pct"] < TOLERANCES_DISCREPANCY_BOUND, fit
