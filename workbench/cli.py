@@ -183,6 +183,8 @@ def _identify(args: argparse.Namespace, out: OutputSet) -> str:
     summary = ", ".join(f"{name}: E = {j['youngs_modulus'] / 1e9:.3g} GPa, CoV = {j['cov']:.3g}"
                         for name, j in done.record["joints"].items())
     return f"{args.method} on {done.campaign!r} ({done.source}): {summary}; written to {args.out}"
+
+
 def _notify(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 

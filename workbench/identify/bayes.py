@@ -64,12 +64,11 @@ def _start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Maximum a posteriori point and walkers drawn from the Laplace approximation there.
 
-    The MAP by L-BFGS-B (gradient by central differences, one vectorised call); the covariance
-    from the finite-difference Hessian (eigenvalues floored). Starting the ensemble from the
-    Laplace approximation rather than a tiny ball lets a short burn-in reach the stationary law.
+    The MAP by L-BFGS-B (gradient by central differences, one vectorised call); the covariance from the
+    finite-difference Hessian (eigenvalues floored). Starting the ensemble from the Laplace approximation
+    rather than a tiny ball lets a short burn-in reach the stationary law.
     """
-    g = lm.n_groups
-    d = lm.ndim
+    g, d = lm.n_groups, lm.ndim
     f = lm.table(lm.z_start)
     resid = np.where(lm.mask, lm.f_obs / f - 1.0, np.nan)
     sig0 = np.clip(np.nanstd(resid, axis=0), 2 * SIGMA_BOUNDS[0], 0.5 * SIGMA_BOUNDS[1])
@@ -168,7 +167,8 @@ class Posterior:
         None without that term: the posterior over the sampled parameters of its Laplace law.
     sensitivity, sensitivity_ci95 : the same for each mode's sensitivity error ``eps_k`` (log of the factor
         on the mode's joint energies), or None without it.
-    factors, factors_ci95, factor_names : the same for the frame's manufacturing factors (logs), or None.
+    factors, factors_ci95, factor_names, factor_prior_sd : the same for the frame's manufacturing factors (logs
+        from the drawing; None and () without tolerances) and their prior sds.
     trust_reached : the groups whose posterior mean modulus reaches the edge of the region where the
         anchored forward model holds (`workbench.identify.laplace.LaplaceLikelihood.mean_bounds`), after
         anchoring a second time where the posterior was: a result the data and that model cannot place.
@@ -217,6 +217,7 @@ class Posterior:
     factors: np.ndarray | None = None
     factors_ci95: np.ndarray | None = None
     factor_names: tuple[str, ...] = ()
+    factor_prior_sd: np.ndarray | None = None
     trust_reached: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
@@ -256,7 +257,7 @@ class Posterior:
     def error_records(self) -> dict[str, object]:
         """identification.json's ``errors`` (an extension key; relative values, medians and 95 % intervals):
         each mode's measurement error, the further error terms' scales, each mode's discrepancy and
-        sensitivity error.
+        sensitivity error; ``manufacturing``: each factor's log from the drawing and its prior sd.
         """
         def entry(value: float, ci: np.ndarray) -> dict[str, object]:
             return {"value": float(value), "ci95": [float(ci[0]), float(ci[1])]}
@@ -272,9 +273,9 @@ class Posterior:
         if self.sensitivity is not None and self.sensitivity_ci95 is not None:
             out["sensitivity"] = {f"mode{m}": entry(v, c)
                                   for m, v, c in zip(modes, self.sensitivity, self.sensitivity_ci95)}
-        if self.factors is not None and self.factors_ci95 is not None:  # log factors, about relative errors
-            out["manufacturing"] = {n: entry(v, c) for n, v, c in zip(self.factor_names, self.factors,
-                                                                      self.factors_ci95)}
+        if self.factors is not None and self.factors_ci95 is not None and self.factor_prior_sd is not None:
+            out["manufacturing"] = {n: {**entry(v, c), "prior_sd": float(s)} for n, v, c, s in
+                                    zip(self.factor_names, self.factors, self.factors_ci95, self.factor_prior_sd)}
         return out
 
 
@@ -380,7 +381,9 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
              f"{SIGMA_BOUNDS[1]:g}], their geometric mean half-normal ({SIGMA_SCALE:g}), log sigma_k normal about its "
              f"log (sd {SIGMA_SPREAD:g})" + "".join(f"; {n} half-normal ({scale:g}) on [{lo:g}, {hi:g}]"
                                                     for n, (lo, hi), scale
-                                                    in zip(terms.names, lm.extra_bounds, lm.extra_scales)),
+                                                    in zip(terms.names, lm.extra_bounds, lm.extra_scales))
+             + ("; manufacturing factors' logs normal about the drawing (sds: errors.manufacturing)"
+                if getattr(lm, "factor_names", ()) else ""),
              "reference_pa": lm.reference_pa.tolist(), "autocorr_time": tau.tolist(),
              "acceptance_fraction": float(np.mean(sampler.acceptance_fraction))}
     thin = max(1, math.ceil(steps / 500))
@@ -398,6 +401,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata,
         error_names=terms.names, error_scales=q[1, 2 * g + k:], error_scales_ci95=q[[0, 2], 2 * g + k:].T,
         trust_reached=trust_reached, factor_names=getattr(lm, "factor_names", ()),
+        factor_prior_sd=getattr(lm, "factor_sd", None),
         **(shared_summary(lm, chain, rng) if isinstance(lm, LaplaceLikelihood) else {}))
     if not post.converged:
         log.warning("%s: the chains have not converged (max R-hat %.3f, limit %.2f; min ESS %.0f, limit %d; "
@@ -423,9 +427,7 @@ def _likelihood(model: Structure, measured: MeasuredModes, groups: JointGroups |
 
 
 def _autocorr_time(sampler: Any) -> np.ndarray:
-    """Emcee's integrated autocorrelation time per parameter, without its "shorter than 50 tau" note
-    (the result reports tau itself).
-    """
+    """Emcee's integrated autocorrelation time per parameter, without its "shorter than 50 tau" note."""
     quiet = logging.getLogger("emcee.autocorr")
     level = quiet.level
     quiet.setLevel(logging.ERROR)
@@ -437,10 +439,8 @@ def _autocorr_time(sampler: Any) -> np.ndarray:
 
 
 def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Arviz rank-normalised split R-hat and bulk ESS of each parameter, walkers as chains, (D,) each.
-
-    ``chain`` (steps, walkers, D). Both are invariant under monotone maps of a parameter, so the
-    sampled logs give the values of the reported parameters.
+    """Arviz rank-normalised split R-hat and bulk ESS of each parameter, walkers as chains, (D,) each, of
+    ``chain`` (steps, walkers, D): invariant under monotone maps, so the sampled logs give the reported's.
     """
     az = load_arviz()
     per = np.moveaxis(chain, -1, 0).transpose(0, 2, 1)  # (D, walkers, steps)

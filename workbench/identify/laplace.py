@@ -14,9 +14,8 @@ and priors), and three error terms:
     eps_k ~ Normal(0, 0.1^2)        and its sensitivity error: mode k's joint energies are
                                     ``exp(eps_k)`` times the model's (``ErrorTerms.sensitivity``; on
                                     request, ``--errors sensitivity``: see below)
-    m_p ~ Normal(0, tol_p^2)        with tolerances (``--tolerances``), the frame's manufacturing factors:
-                                    each member's width and thickness, each material's E and density, in
-                                    every test's rest and joint energies (`workbench.identify.members`)
+    m_p ~ Normal(0, tol_p^2)        with ``--tolerances``, the frame's manufacturing factors (each member's b and
+                                    t, each material's E and rho) in every test's energies (`identify.members`)
 
 ``sigma_k`` is each mode's measurement error; ``s_u`` and ``s_delta`` are sampled too, each with a
 half-normal prior as the sigmas' (`workbench.identify.likelihood`: scales `COMMON_SCALE`,
@@ -119,8 +118,8 @@ class _Mode:
 
     z: np.ndarray  # (N, T, r) the tests' latent log-moduli at the mode
     per_test: np.ndarray  # (N, T) each test's terms
-    shared: np.ndarray  # (N,) the discrepancy's terms
-    shared_mode: np.ndarray  # (N, S) every shared latent at the mode (delta, then eps); (N, 0) without them
+    shared: np.ndarray  # (N,) the shared latents' terms
+    shared_mode: np.ndarray  # (N, S) every shared latent at the mode (delta, eps, m from its centre); (N, 0) without
     shared_cov: np.ndarray  # (N, S, S) their Laplace covariance
 
 
@@ -128,7 +127,7 @@ class _Mode:
 class _Population:
     """What ``theta`` sets in the integrand, per row: the Gamma laws' shape ``a`` and log scale (N, 1, r),
     the data weights ``w`` (N, T, K), ``1 / s_u^2`` (N, 1) and the shared latents' prior precisions (N, S)
-    (``1 / s_delta^2`` for delta, ``1 / SENSITIVITY_SD^2`` for eps), or None for a term off.
+    (``1 / s_delta^2`` for delta, ``1 / SENSITIVITY_SD^2`` for eps, the tolerances' for m), or None for a term off.
     """
 
     a: np.ndarray
@@ -146,7 +145,7 @@ class _Population:
 @dataclass(frozen=True)
 class _Latent:
     """The latent variables of N rows: ``z`` (N, T, r), ``u`` (N, T), the shared ``delta`` (N, S): each
-    mode's shift, then with the sensitivity term each mode's ``eps``.
+    mode's shift, then with the sensitivity term each mode's ``eps``, then the factors ``m`` from their centre.
     """
 
     z: np.ndarray
@@ -167,8 +166,8 @@ class _Latent:
 @dataclass(frozen=True)
 class _Local:
     """The log integrand at a point and its derivatives (N rows): each test's terms (N, T), the
-    discrepancy's prior (N,); ascent directions ``grad`` (N, T, p) in each test's ``(z_t, u_t)`` and
-    ``grad_d`` (N, K) in delta; what the Hessians are built from.
+    shared latents' prior (N,); ascent directions ``grad`` (N, T, p) in each test's ``(z_t, u_t)`` and
+    ``grad_d`` (N, S) in the shared latents; what the Hessians are built from.
     """
 
     per_test: np.ndarray
@@ -271,7 +270,8 @@ class LaplaceLikelihood(PopulationModel):
 
     def shared_latents(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every shared latent at the integrand's mode and its Laplace sd, (N, S) each: each mode's discrepancy
-        ``delta_k``, then with the sensitivity term each mode's ``eps_k``; (N, 0) without the discrepancy.
+        ``delta_k``, with the sensitivity term each mode's ``eps_k``, with tolerances the factors ``m`` last (logs
+        from the drawing); (N, 0) without the discrepancy.
         """
         mode = self._mode(np.atleast_2d(np.asarray(theta, float)))
         return (mode.shared_mode + self._offset(mode.shared_mode.shape[1]),
@@ -451,7 +451,7 @@ def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointG
     """
     terms = terms or ErrorTerms()
     if tolerances is not None and (not terms.discrepancy or terms.sensitivity):
-        raise ValueError("tolerances: they need the discrepancy term and exclude the sensitivity term")
+        raise ValueError(f"{measured.source}: tolerances: they need the discrepancy term, without the sensitivity term")
     p = prepare(model, measured, groups, start)
     at = structure_at_moduli(model, p.reference_pa[p.joint_group])
     factors = member_factors(at, tolerances) if tolerances is not None else None

@@ -49,7 +49,7 @@ def hessian_blocks(local: Point, w: np.ndarray, inv_u: np.ndarray | None, r: int
     f, res, jz, share = local.f, local.res, local.jac[..., :r], local.share
     q = w * (f - res) if exact else w * f  # d2f/du2 = d2f/ddelta2 = d2f/du ddelta = f
     hess = np.swapaxes(jz * w[..., None], -1, -2) @ jz + local.e[..., None] * np.eye(r)
-    if exact:  # d2f/dz_i dz_j = delta_ij df_j - df_i d_j / (2 lambda), lambda = (2 pi f / m)^2
+    if exact:  # d2f/dz_i dz_j = delta_ij df_j - df_i d_j / (2 lambda), lambda = (2 pi f / exp(u + delta))^2
         wr = w * res
         hess = hess + np.swapaxes(jz * (wr / (2.0 * local.lam))[..., None], -1, -2) @ local.d
         hess = hess - (wr[..., None, :] @ jz)[..., 0, :][..., None] * np.eye(r)
@@ -85,10 +85,11 @@ def factor_hessian(local: Point, factors: tuple[np.ndarray, np.ndarray], w: np.n
     ``design`` holds ``df/dm`` in its last P columns; ``factors`` is ``local.factors``; ``w`` the data
     weights (N, T, K), ``q`` delta's curvature weights (``w (f - res)`` exact, ``w f`` otherwise).
 
-    With ``a, b`` any two latents, ``d2f/da db = f lambda_ab / (2 lambda) - f lambda_a lambda_b / (4 lambda^2)``;
-    ``lambda`` is linear in ``m`` (``lambda_mm = 0``), ``lambda_{z_j m} = D_j exp(z_j - zbar_j)``, and
-    ``d2f/dm ddelta = d2f/dm du = df/dm``. ``exact`` adds the residual's curvature (the Laplace
-    determinant's); otherwise Gauss-Newton's.
+    With ``a, b`` any two of ``z`` and ``m``,
+    ``d2f/da db = f lambda_ab / (2 lambda) - f lambda_a lambda_b / (4 lambda^2)``; ``lambda`` is linear
+    in ``m`` (``lambda_mm = 0``), ``lambda_{z_j m} = D_j exp(z_j - zbar_j)``, and ``d2f/dm ddelta =
+    d2f/dm du = df/dm``. ``exact`` adds the residual's curvature (the Laplace determinant's); otherwise
+    Gauss-Newton's.
     """
     gm, dm = factors
     f, lam = local.f, local.lam

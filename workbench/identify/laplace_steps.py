@@ -84,7 +84,7 @@ def direct_step(local: Local, hess: np.ndarray, coupling: np.ndarray, block: np.
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Newton's step ``H^-1 grad`` of the block-arrow system (module docstring) with each test's block
     ``hess`` (N, T, p, p) solved directly: the step in ``x_t`` (N, T, p) and in ``s`` (N, S).
-    ``coupling`` (N, T, S, p) and ``block`` (N, S, S) as `workbench.identify.laplace.LaplaceLikelihood._hessian`.
+    ``coupling`` (N, T, S, p) and ``block`` (N, S, S) as `workbench.identify.laplace_hessian.hessian_blocks`.
     """
     if inv_d is None:
         return np.linalg.solve(hess, local.grad[..., None])[..., 0], np.zeros(local.grad_d.shape)

@@ -80,7 +80,11 @@ def member_factors(model: Structure, tolerances: Tolerances, centre: np.ndarray 
 def with_member_derivatives(forward: AnchoredForward, factors: MemberFactors, nominal: Modes,
                             modes: np.ndarray) -> AnchoredForward:
     """``forward`` with the derivatives ``C`` (T, K, P) and ``D`` (T, K, r, P) of its rest and joint
-    energies in the factors' logs at its anchors (module docstring), (rad/s)^2.
+    energies in the factors' logs at its anchors (module docstring), (rad/s)^2. ``forward`` must be
+    ``factors.base``'s (the frame at the factors' centre).
+
+    The forward model's error that `workbench.identify.anchored.forward_error` reports is at the centre;
+    the terms in ``m`` err by about 1e-5 of a frequency at twice the tolerance (`tests/test_members.py`).
     """
     rest = np.empty(forward.rest.shape + (factors.count,))
     joints = np.empty(forward.joints.shape + (factors.count,))

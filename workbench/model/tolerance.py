@@ -10,8 +10,8 @@ So the identification can carry the tolerances as latent factors (`workbench.ide
                                                    A_i scales as b_i t_i, I_i as b_i t_i^3
     log E_m, log rho_m ~ Normal(0, material_sd^2)  material m's Young's modulus and density
 
-A section that is not a flat bar scales the same way: its area as one dimension times another, its
-second moment as the first times the cube of the second (the bending direction's). The joints' own
+A section that is not a flat bar is scaled the same way (its area as one dimension times another, its
+second moment as the first times the cube of the second): an assumption for a tube or an I-section. The joints' own
 moduli are the joints' laws', not the material's: a joint zone keeps its modulus.
 """
 
@@ -68,7 +68,8 @@ def frame_with_factors(frame: Frame, log_factors: np.ndarray) -> Frame:
     factors = np.exp(np.asarray(log_factors, float))
     expected = 2 * (len(frame.materials) + len(frame.members))
     if factors.shape != (expected,):
-        raise ValueError(f"frame_with_factors: {factors.shape} factors for {expected} (2 per material and member)")
+        raise ValueError(f"{frame.source}: frame_with_factors: {factors.shape} factors for {expected} "
+                         "(2 per material and member)")
     materials = {}
     for i, (name, mat) in enumerate(frame.materials.items()):
         materials[name] = replace(mat, youngs_modulus=mat.youngs_modulus * factors[2 * i],

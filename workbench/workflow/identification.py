@@ -22,6 +22,7 @@ from workbench.identify.pairing import pair_by_mac
 from workbench.identify.record import ESS_LIMIT, RHAT_LIMIT, bound_failures, identification_record, sampler_diagnostics
 from workbench.io.campaign import load_campaign
 from workbench.io.outputs import json_text
+from workbench.model.frame import Frame
 from workbench.model.structure import structure_of
 from workbench.model.tolerance import Tolerances
 from workbench.progress import Progress
@@ -46,7 +47,9 @@ class IdentifyOptions:
 
 @dataclass(frozen=True)
 class Identified:
-    """What `identify_campaign` found: the files to write (all or none), the record and the campaign's name."""
+    """What `identify_campaign` found: the files to write (all or none), the record, the campaign's name and
+    its data's source.
+    """
 
     files: dict[str, str | bytes]
     record: dict
@@ -68,6 +71,8 @@ def identify_campaign(path: Path, options: IdentifyOptions, progress: Progress |
         raise ValueError(f"{path}: --tolerances needs --method bayes with --errors full or discrepancy (the "
                          "tolerances enter beside the discrepancy term, without the sensitivity term)")
     campaign = load_campaign(path)
+    if options.tolerances is not None and not isinstance(campaign.frame, Frame):
+        raise ValueError(f"{path}: --tolerances: a matrix model has no members or materials to give tolerances to")
     data, dropped = usable_modes(measured_modes(campaign, options.count, "identify from"))
     if dropped:
         warnings.warn(f"{path}: modes {dropped} were extracted in fewer than 2 tests: left out "
@@ -88,7 +93,7 @@ def identify_campaign(path: Path, options: IdentifyOptions, progress: Progress |
 
         fit = posterior = bayes_identify(model, data, seed=options.seed, steps=options.steps,
                                          max_steps=max(options.max_steps, options.steps),
-                                         errors=ERROR_TERMS[options.errors], progress=progress,
+                                         errors=terms, progress=progress,
                                          tolerances=options.tolerances)
         files[POSTERIOR_FILE] = posterior_netcdf(posterior)  # written with the rest: all files or none
     record = identification_record(campaign.name, options.method, campaign.frame, fit, data.modes,
