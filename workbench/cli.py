@@ -309,22 +309,7 @@ def _parser() -> argparse.ArgumentParser:
     p = command("identify", "mean and CoV of each joint group's modulus from a campaign", _identify,
                 ("identification.json", "posterior.nc"))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
-    p.add_argument("--method", required=True, choices=["moments", "bayes"])
-    p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
-    p.add_argument("--allow-bounds", action="store_true",
-                   help="write an estimate within 1 %% of its search interval's bound (flagged \"at_bound\": true), "
-                        "or chains that have not converged (\"converged\": false), instead of failing")
-    p.add_argument("--steps", type=_positive_int, default=3000, help="bayes: steps kept per walker, at least "
-                   "(default 3000)")
-    p.add_argument("--max-steps", type=_positive_int, default=12000, help="bayes: the chains run on until every "
-                   "R-hat <= 1.01 and ESS >= 400, up to this many steps (default 12000)")
-    p.add_argument("--errors", choices=sorted(ERROR_TERMS), default="full",
-                   help="bayes: error terms besides each mode's measurement error: full (common error, discrepancy per "
-                        "mode; default), common, discrepancy, none, sensitivity (full, joint energies uncertain)")
-    p.add_argument("--tolerances", type=_tolerances, metavar="SECTION[,MATERIAL]",
-                   help="bayes: the frame's manufacturing tolerances as relative sds, integrated as latent factors: "
-                        "each member's width and thickness, each material's E and density (default: the first)")
+    _identify_options(p)
 
     p = command("propagate", "moments of the eigenfrequencies under random joint moduli", _propagate,
                 ("moments.csv", "run.json"))
@@ -369,6 +354,25 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
     p.set_defaults(run=_validate_diagnosis, writes=("validation.json", "cases.csv", "index.html"))
     return parser
+
+
+def _identify_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--method", required=True, choices=["moments", "bayes"])
+    p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (moments) or the chains (bayes)")
+    p.add_argument("--allow-bounds", action="store_true",
+                   help="write an estimate within 1 %% of its search interval's bound (flagged \"at_bound\": true), "
+                        "or chains that have not converged (\"converged\": false), instead of failing")
+    p.add_argument("--steps", type=_positive_int, default=3000, help="bayes: steps kept per walker, at least "
+                   "(default 3000)")
+    p.add_argument("--max-steps", type=_positive_int, default=12000, help="bayes: the chains run on until every "
+                   "R-hat <= 1.01 and ESS >= 400, up to this many steps (default 12000)")
+    p.add_argument("--errors", choices=sorted(ERROR_TERMS), default="full",
+                   help="bayes: error terms besides each mode's measurement error: full (common error, discrepancy per "
+                        "mode; default), common, discrepancy, none, sensitivity (full, joint energies uncertain)")
+    p.add_argument("--tolerances", type=_tolerances, metavar="SECTION[,MATERIAL]",
+                   help="bayes: the frame's manufacturing tolerances as relative sds, integrated as latent factors: "
+                        "each member's width and thickness, each material's E and density (default: the first)")
 
 
 def _report_options(p: argparse.ArgumentParser) -> None:
