@@ -66,7 +66,8 @@ class AnchoredForward:
     def __call__(self, z: np.ndarray, grad: bool = False,
                  m: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | np.ndarray:
         """Frequencies (..., T, K), Hz, at ``z`` (..., T, r); with ``grad`` also ``dlambda/dz`` (..., T, K, r).
-        ``m`` (..., P): the manufacturing factors' logs, first order (`workbench.identify.members`).
+        ``m`` (..., P): the manufacturing factors' logs, first order (`workbench.identify.members`); ignored
+        by a forward model built without them (its frame is the drawing).
         """
         joints, rest = self.joints, self.rest
         if m is not None and self.joints_grad is not None and self.rest_grad is not None:
