@@ -16,7 +16,7 @@ The derivatives are forward differences of exact solves (one frame per factor, m
 `MEMBER_STEP`): the energies' derivatives need the eigenvectors' (the eigenvalue's alone is a
 quadratic form), and a frame has a few factors, so P extra solves per test cost less than the
 adjoint algebra would take to write and check. Cost: each (re-)anchoring assembles P + 1 frames and
-solves each test P + 1 times (the four-bolt frame, P = 8, 17 tests: about 2 s); an identification with
+solves each test P + 1 times (the four-bolt frame, P = 8, 17 tests: 3.2 s on a busy machine); an identification with
 tolerances re-anchors once more, and took 42-58 s against about 20 s without (`reports/estimators_proving.md`,
 section 8).
 """
