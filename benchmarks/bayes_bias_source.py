@@ -36,7 +36,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
-from estimators_proving import COUNT, DESIGNS, NUISANCES
+from estimators_proving import COUNT, DESIGNS, STATED
 
 from workbench.identify import laplace
 from workbench.identify.bayes import bayes_identify
@@ -68,7 +68,7 @@ def fit_one(design: str, rep: int, fit: str) -> dict:
     try:
         t0 = time.perf_counter()
         misstated = float(fit.split("_x")[1]) if "_x" in fit else 1.0  # a drawing's tolerance stated wrong
-        stated = Tolerances(misstated * NUISANCES.section_sd, misstated * NUISANCES.material_sd) \
+        stated = Tolerances(misstated * STATED.section_sd, misstated * STATED.material_sd) \
             if fit.startswith("timo_tolerances") else None
         post = bayes_identify(model, data, groups, seed=rep, steps=1000, max_steps=8000, errors=ERROR_TERMS["full"],
                               tolerances=stated)

@@ -383,7 +383,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
                                                     for n, (lo, hi), scale
                                                     in zip(terms.names, lm.extra_bounds, lm.extra_scales))
              + ("; manufacturing factors' logs normal about the drawing (sds: errors.manufacturing)"
-                if getattr(lm, "factor_names", ()) else ""),
+                if isinstance(lm, LaplaceLikelihood) and lm.factor_names else ""),
              "reference_pa": lm.reference_pa.tolist(), "autocorr_time": tau.tolist(),
              "acceptance_fraction": float(np.mean(sampler.acceptance_fraction))}
     thin = max(1, math.ceil(steps / 500))
@@ -400,8 +400,7 @@ def bayes_identify(model: Structure, measured: MeasuredModes, groups: JointGroup
         acceptance_fraction=float(np.mean(sampler.acceptance_fraction)),
         walkers=walkers, steps=steps, burn=burn, seed=seed, wall_time_s=wall, idata=idata,
         error_names=terms.names, error_scales=q[1, 2 * g + k:], error_scales_ci95=q[[0, 2], 2 * g + k:].T,
-        trust_reached=trust_reached, factor_names=getattr(lm, "factor_names", ()),
-        factor_prior_sd=getattr(lm, "factor_sd", None),
+        trust_reached=trust_reached,
         **(shared_summary(lm, chain, rng) if isinstance(lm, LaplaceLikelihood) else {}))
     if not post.converged:
         log.warning("%s: the chains have not converged (max R-hat %.3f, limit %.2f; min ESS %.0f, limit %d; "

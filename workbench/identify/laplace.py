@@ -25,18 +25,15 @@ scatter (the CoVs' evidence), and its zero-mean prior of sampled width lets a jo
 in the pattern of its energy shares across modes (eq. 5); a discrepancy pattern that the joints
 cannot produce is the discrepancy's, and it widens the means' intervals by what it could absorb.
 
-**Why the sensitivity error.** A mode's sensitivity to a joint, ``0.5 L_kj Y / (c_k + sum L Y)``
-(eq. 5), saturates with the modulus at the mode's own rate, so the pattern of the tests' scatter
-across the modes tells the joints' level even when ``delta`` takes every mean frequency: on proving-
-ground campaigns, holding ``s_delta`` at 3-5 % left the two-bolt frame's horizontal mean where it was,
-4-6 % stiff, and a Timoshenko nominal model removed about 4 points of it
-(`benchmarks/bayes_bias_source.py`). That information is only as good as the model's energy shares;
-``eps_k`` (sd `SENSITIVITY_SD`: a beam zone's share of a mode's strain energy stands for a bolted lap
-to about 10 %) was meant to price it. It does not (`reports/estimators_proving.md`, step 6): the
-errors' mean over the modes is a change of every modulus, which the data cannot see, so it only widens
-the means' intervals by ``SENSITIVITY_SD / sqrt(K)``; that widening alone made the two-bolt frame's
-horizontal mean cover (63 % to 90 % on a fresh seed). Their zero-sum pattern moves the estimates away
-from the truth (a four-bolt horizontal CoV from -2 % to -40 %). So it is on request only.
+**Why the sensitivity error.** A mode's sensitivity to a joint, ``0.5 L_kj Y / (c_k + sum L Y)`` (eq. 5),
+saturates with the modulus at the mode's own rate, so the pattern of the tests' scatter across the modes
+tells the joints' level even when ``delta`` takes every mean frequency (`benchmarks/bayes_bias_source.py`).
+That information is only as good as the model's energy shares; ``eps_k`` (sd `SENSITIVITY_SD`: a beam
+zone's share of a mode's strain energy stands for a bolted lap to about 10 %) was meant to price it. It
+does not (`reports/estimators_proving.md`, step 6): the errors' mean over the modes is a change of every
+modulus, which the data cannot see, so it only widens the means' intervals by ``SENSITIVITY_SD /
+sqrt(K)``; their zero-sum pattern moves the estimates away from the truth. So it is on request only; the
+members' tolerances (``m``) are what the report's section 8 found to price the energy shares.
 
 **Integration.** Every latent variable is integrated out by Laplace: the tests' ``z_t = log(Y_t /
 Y0)`` and ``u_t``, and the shared ``delta``, ``eps`` and ``m``. Gauss-Newton with a line search finds the
@@ -60,6 +57,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -90,6 +88,9 @@ TRUST_RADIUS = 0.5  # how far a group's log mean modulus may go from the anchors
 MAX_Z_STEP = 0.5  # largest Newton step in log-modulus
 MAX_SHIFT_STEP = 0.05  # largest Newton step in u, delta (relative frequency) and eps
 SENSITIVITY_SD = 0.1  # eps_k's prior sd: a mode's joint energy known to 10 % (module docstring)
+
+
+Refit = Callable[[np.ndarray, np.ndarray | None], tuple[AnchoredForward, float]]  # (anchors, factors' centre)
 
 
 @dataclass(frozen=True)
@@ -212,9 +213,7 @@ class LaplaceLikelihood(PopulationModel):
     reference_pa: np.ndarray
     z_start: np.ndarray
     terms: ErrorTerms = field(default_factory=ErrorTerms)
-    refit: Callable[[np.ndarray, np.ndarray | None], tuple[AnchoredForward, float]] | None = field(default=None,
-                                                                                                 compare=False,
-                                                                               repr=False)
+    refit: Refit | None = field(default=None, compare=False, repr=False)
     trust_centre: np.ndarray | None = None
     factor_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the manufacturing factors' prior sds (P,)
     factor_centre: np.ndarray = field(default_factory=lambda: np.zeros(0))  # their expansion point (`reanchored`)
@@ -478,13 +477,12 @@ def laplace_likelihood(model: Structure, measured: MeasuredModes, groups: JointG
 SUMMARY_DRAWS = 400  # posterior draws whose shared latents' Laplace law is evaluated for their summary
 
 
-def shared_summary(lm: LaplaceLikelihood, chain: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """`workbench.identify.bayes.Posterior`'s ``discrepancy`` and ``sensitivity`` (and their ``_ci95``): the
-    median and 95 % interval of each mode's ``delta_k`` and ``eps_k`` over the posterior, from their Laplace
-    law (mode and sd) at `SUMMARY_DRAWS` draws of the sampled parameters ``chain`` (..., D); nothing for a
-    term off.
+def shared_summary(lm: LaplaceLikelihood, chain: np.ndarray, rng: np.random.Generator) -> dict[str, Any]:
+    """`workbench.identify.bayes.Posterior`'s ``discrepancy``, ``sensitivity`` and ``factors`` (and ``_ci95``):
+    the median and 95 % interval of each over the posterior, from their Laplace law (mode and sd) at
+    `SUMMARY_DRAWS` draws of ``chain`` (..., D), with the factors' names and prior sds; nothing for a term off.
     """
-    out: dict[str, np.ndarray] = {}
+    out: dict[str, Any] = {}
     if not lm.terms.discrepancy:
         return out
     flat = chain.reshape(-1, chain.shape[-1])
@@ -496,4 +494,6 @@ def shared_summary(lm: LaplaceLikelihood, chain: np.ndarray, rng: np.random.Gene
     for name, part in parts + [("factors", slice(q.shape[1] - n_m, q.shape[1]))]:
         if q[1, part].size:
             out[name], out[f"{name}_ci95"] = q[1, part], q[[0, 2]][:, part].T
+    if n_m:  # the factors' names and priors travel with their summary
+        out.update(factor_names=lm.factor_names, factor_prior_sd=lm.factor_sd)
     return out
