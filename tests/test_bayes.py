@@ -313,7 +313,7 @@ def test_the_map_search_reaches_an_optimum_past_where_the_posterior_is_not_finit
     it began; the search in a moving box reaches the optimum."""
     from scipy.optimize import minimize
 
-    from workbench.identify.bayes import _map_search
+    from workbench.identify.runs import map_search as _map_search
 
     optimum = np.array([0.25, -3.0])
     scale = np.array([1.0, 30.0])  # curvatures 1 and 900

@@ -70,3 +70,19 @@ def test_with_the_drawings_tolerances_integrated_each_group_lands_near_its_sampl
         row = fit[group]
         assert abs(row["mean"] - row["sample"]) < TOLERANCES_MEAN_BOUND, (group, row)
     assert fit["discrepancy_scale_pct"] < TOLERANCES_DISCREPANCY_BOUND, fit
+
+
+MISSTATED_CAMPAIGN = 1  # a development campaign: the one the defect showed on
+
+
+def test_a_tolerance_stated_twice_too_wide_does_not_send_the_mean_away():
+    """Campaign 1 with the tolerance stated at twice the drawing's gave -23.6 % [-25.0, -22.1] for a sample mean
+    of +1.6 % when the likelihood stayed anchored where a search with fixed error scales had put it (-45 %); the
+    pilot runs now anchor it where the posterior goes (`workbench.identify.runs.sample_anchored`).
+    """
+    fit = _fit("timo_tolerances_x2", MISSTATED_CAMPAIGN)
+    assert fit["converged"]
+    for group in ("vertical", "horizontal"):
+        row = fit[group]
+        assert abs(row["mean"] - row["sample"]) < TOLERANCES_MEAN_BOUND, (group, row)
+        assert row["low"] <= row["sample"] <= row["high"], (group, row)

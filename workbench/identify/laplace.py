@@ -233,7 +233,7 @@ class LaplaceLikelihood(PopulationModel):
         sd (`workbench.identify.anchored.ANCHOR_PRIOR_SD`): a factor of 1.65 either way. A radius of
         0.3 cut the horizontal mean's posterior of ordinary two- and four-bolt campaigns, whose first
         anchors' MAP search then stopped where it started (0.25 from the posterior; since mended,
-        `workbench.identify.bayes._map_search`).
+        `workbench.identify.runs.map_search`).
         """
         box = self.support_mean_bounds
         centre = self.trust_centre if self.trust_centre is not None else np.array(
