@@ -13,7 +13,8 @@ started from the Laplace approximation at the maximum a posteriori point (L-BFGS
 more adapt the independence move, then ``steps`` kept. Seeding: the walkers' start from
 ``numpy.random.default_rng(seed)`` and emcee's own generator through ``emcee.State(...,
 random_state=RandomState(seed).get_state())`` (emcee silently ignores a bare integer there). Progress goes
-through the `workbench.progress` callback, one ``"emcee"`` task over the burn-in and the kept steps.
+through the `workbench.progress` callback, one ``"emcee"`` task over the burn-in and the kept steps (with a
+Laplace likelihood, pilot runs of the burn-in's length go first, each its own task: `workbench.identify.runs`).
 Diagnostics: arviz R-hat and bulk ESS (walkers as chains) and emcee's integrated autocorrelation time.
 Intervals are equal-tailed 95 % (2.5, 97.5 %).
 
@@ -185,7 +186,6 @@ class Posterior:
             out["manufacturing"] = {n: {**entry(v, c), "prior_sd": float(s)} for n, v, c, s in
                                     zip(self.factor_names, self.factors, self.factors_ci95, self.factor_prior_sd)}
         return out
-
 
 
 def _inference_data(samples: dict[str, np.ndarray], lp: np.ndarray, measured: MeasuredModes, intervals: dict,

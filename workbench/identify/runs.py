@@ -10,6 +10,7 @@ when the posterior leans on the edge of the region those anchors hold or has gon
 
 from __future__ import annotations
 
+import logging
 import math
 import warnings
 from collections.abc import Callable
@@ -28,16 +29,29 @@ from workbench.progress import Progress
 __all__ = ["start", "map_search", "sample_anchored", "chain_diagnostics", "load_arviz", "MAP_BOX", "TRUST_EDGE",
            "MOVED_SD", "REANCHORINGS", "PILOT_STEPS"]
 
+log = logging.getLogger(__name__)
+
 MAP_BOX = 0.2  # half-width (log units) of the box the MAP search moves in: where the posterior stays finite
 
 
 def start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
-           rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+          rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Maximum a posteriori point and walkers drawn from the Laplace approximation there.
 
     The MAP by L-BFGS-B (gradient by central differences, one vectorised call); the covariance from the
     finite-difference Hessian (eigenvalues floored). Starting the ensemble from the Laplace approximation
     rather than a tiny ball lets a short burn-in reach the stationary law.
+
+    Parameters
+    ----------
+    lm : the likelihood (its ``log_posterior`` over the sampled parameters, logs of the moduli relative to
+        ``reference_pa``, CoVs and error scales).
+    walkers : how many walkers to draw.
+    rng : draws the walkers.
+
+    Returns
+    -------
+    x_map : (D,) the point found; initial : (walkers, D) the walkers, each with a finite log-posterior.
     """
     g, d = lm.n_groups, lm.ndim
     f = lm.table(lm.z_start)
@@ -96,7 +110,7 @@ def start(lm: LikelihoodModel | LaplaceLikelihood, walkers: int,
 
 
 def map_search(fun: Callable[[np.ndarray], tuple[float, np.ndarray]], x0: np.ndarray, bounds: np.ndarray,
-                box: float = MAP_BOX, rounds: int = 12) -> np.ndarray:
+               box: float = MAP_BOX, rounds: int = 12) -> np.ndarray:
     """L-BFGS-B within a box of half-width ``box`` (log units) that moves with the optimum.
 
     On the whole bounds L-BFGS-B's first Cauchy step, taken with a unit Hessian, runs the full gradient
@@ -104,6 +118,16 @@ def map_search(fun: Callable[[np.ndarray], tuple[float, np.ndarray]], x0: np.nda
     and its line search then stops at the start: the first anchors' MAP sat 0.2 from the optimum, 17 in
     log-posterior below it. A box around the current point keeps every trial step where the posterior
     is finite; the box moves until the optimum is inside it, not on an edge it alone imposed.
+
+    Parameters
+    ----------
+    fun : the objective and its gradient at a point (minimised).
+    x0 : (D,) the start; bounds : (D, 2) the parameters' bounds.
+    box : the moving box's half-width, in the parameters' (log) units; rounds : moves of the box at most.
+
+    Returns
+    -------
+    (D,) the minimum found.
     """
     x = x0
     for _ in range(rounds):
@@ -117,7 +141,7 @@ def map_search(fun: Callable[[np.ndarray], tuple[float, np.ndarray]], x0: np.nda
     return x
 
 
-# --------------------------------------------------------------------------------------- results
+# --------------------------------------------------------------------------------------- diagnostics
 
 def load_arviz() -> ModuleType:
     """The arviz module, imported with its FutureWarning silenced (it announces its 1.0 refactor on import)."""
@@ -126,7 +150,6 @@ def load_arviz() -> ModuleType:
         import arviz  # pulls in pandas and xarray: imported only when a result is built or drawn
 
     return arviz
-
 
 
 def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -138,18 +161,32 @@ def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.array([float(az.rhat(p)) for p in per]), np.array([float(az.ess(p)) for p in per]))
 
 
-
 def sample_anchored(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps: int, burn: int, seed: int,
-            max_steps: int | None, progress: Progress | None, forward_error: float, rng: np.random.Generator
-            ) -> tuple[LikelihoodModel | LaplaceLikelihood, Any, float, np.ndarray]:
-    """The ensemble run of `bayes_identify`: the likelihood it ran on, emcee's sampler, the forward model's
-    error and (G,) which groups reach their trust region's edge (`_at_trust_edge`; none with quadrature).
+                    max_steps: int | None, progress: Progress | None, forward_error: float, rng: np.random.Generator
+                    ) -> tuple[LikelihoodModel | LaplaceLikelihood, Any, float, np.ndarray]:
+    """The ensemble run of `bayes_identify`, with a Laplace likelihood anchored where its posterior is.
 
     A Laplace likelihood is anchored again where the MAP population puts each test
-    (`workbench.identify.anchored`); where the posterior then leans on the edge of the region those
-    anchors hold (`LaplaceLikelihood.mean_bounds`) or its median has gone far from them (`_leaves`), it is
-    anchored at the posterior's median and run on from the last walkers: pilot runs of ``burn`` steps do
-    this before the kept run (at most `REANCHORINGS`), and the kept run is checked once more.
+    (`workbench.identify.anchored`; with tolerances, twice: the factors' terms are expanded about their
+    first mode, then about the next). Pilot runs of ``max(burn, PILOT_STEPS)`` steps then go first: while
+    the posterior leans on the edge of the region the anchors hold (`LaplaceLikelihood.mean_bounds`) or
+    its median has gone far from them (`_leaves`), it is anchored at the pilot's median and the walkers go
+    on from where they were (at most `REANCHORINGS` pilots). The kept run is checked once more, and run
+    again anchored at its median if it has left.
+
+    Parameters
+    ----------
+    lm : the likelihood; walkers : how many; steps, burn, max_steps : the kept run's (`run_ensemble`).
+    seed : the kept run's emcee seed; pilot ``i`` is seeded ``seed + 1 + i`` so that the kept run, which
+        starts where a pilot ended, does not replay the random numbers that brought it there.
+    progress : called after each step of every run (each run is its own ``"emcee"`` task).
+    forward_error : the forward model's error as built; rng : draws the walkers' start.
+
+    Returns
+    -------
+    lm : the likelihood the kept run sampled; sampler : emcee's, holding it; forward_error : that
+    likelihood's forward model's error; reached : (G,) which groups reach their trust region's edge
+    (`_at_trust_edge`; none with quadrature).
     """
     x_map, initial = start(lm, walkers, rng)
     if isinstance(lm, LaplaceLikelihood):
@@ -158,8 +195,9 @@ def sample_anchored(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps
         if lm.factor_sd.size:  # the factors' terms expanded about their first mode: once more about the next
             lm, forward_error = lm.reanchored(x_map)
             _, initial = start(lm, walkers, rng)
-        for _ in range(REANCHORINGS):  # short pilot runs find where the posterior goes before the kept run
-            chain = run_ensemble(lm.log_posterior, initial, max(burn, PILOT_STEPS), 0, seed, progress).get_chain()
+        for i in range(REANCHORINGS):  # short pilot runs find where the posterior goes before the kept run
+            chain = run_ensemble(lm.log_posterior, initial, max(burn, PILOT_STEPS), 0, seed + 1 + i,
+                                 progress).get_chain()
             chain, initial = chain[chain.shape[0] // 2:], chain[-1].copy()
             if not _leaves(lm, chain):
                 break
@@ -172,15 +210,19 @@ def sample_anchored(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps
         lm, forward_error, initial = _anchored_at(lm, sampler.get_chain(), rng)
         sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
                                max_steps=max_steps, independence=burn > 0)
+        if _leaves(lm, sampler.get_chain()):
+            log.warning("the posterior has left its anchors again after its kept run was re-anchored: its "
+                        "intervals lean on where the forward model was anchored")
     return lm, sampler, forward_error, _at_trust_edge(lm, sampler.get_chain())
 
 
 def _leaves(lm: LaplaceLikelihood, chain: np.ndarray) -> bool:
-    """Whether the posterior in ``chain`` (steps, walkers, D) has left where ``lm`` was anchored: a group's
-    median log mean modulus more than `MOVED_SD` posterior sds from ``trust_centre``, or a group leaning on
-    its trust region's edge (`_at_trust_edge`). The anchors (and the factors' expansion point) come from a
-    search with the error scales fixed at their priors', which on the four-bolt frame put the horizontal mean
-    17 % below where the posterior went (seed 18, campaign 1: a -24 % interval with the tolerances stated wide).
+    """Whether the posterior in ``chain`` (steps, walkers, D) has left where ``lm`` was anchored (``lm`` has been
+    `LaplaceLikelihood.reanchored`, which sets ``trust_centre``): a group's median log mean modulus more than
+    `MOVED_SD` posterior sds (of that log) from ``trust_centre``, or a group leaning on its trust region's
+    edge (`_at_trust_edge`). The anchors (and the factors' expansion point) come from a search with the error
+    scales fixed at their priors', which on the four-bolt frame put the horizontal mean 17-45 % below where
+    the posterior went (seed 18, campaign 1: a -24 % interval with the tolerances stated wide).
     """
     eps = chain.reshape(-1, chain.shape[-1])[:, :lm.n_groups]
     moved = np.abs(np.median(eps, axis=0) - lm.trust_centre) > MOVED_SD * np.std(eps, axis=0)
@@ -190,14 +232,17 @@ def _leaves(lm: LaplaceLikelihood, chain: np.ndarray) -> bool:
 def _anchored_at(lm: LaplaceLikelihood, chain: np.ndarray, rng: np.random.Generator
                  ) -> tuple[LaplaceLikelihood, float, np.ndarray]:
     """``lm`` anchored at the posterior median of ``chain`` (steps, walkers, D), its forward model's error, and
-    walkers to go on from: the chain's last (a new MAP search with fixed scales could stray again), any the new
-    anchors cannot evaluate put at the median.
+    walkers to go on from: the chain's last (a new MAP search with fixed scales could stray again); any that
+    the new anchors cannot evaluate moved onto one that they can.
     """
     median = np.median(chain.reshape(-1, chain.shape[-1]), axis=0)
     lm, error = lm.reanchored(median)
     initial = chain[-1].copy()
     bad = ~np.isfinite(lm.log_posterior(initial))
-    initial[bad] = median + 1e-4 * rng.standard_normal((int(bad.sum()), median.size))
+    if bad.any():
+        source = initial[~bad] if not bad.all() else median[None, :]
+        initial[bad] = (source[rng.integers(source.shape[0], size=int(bad.sum()))]
+                        + 1e-4 * rng.standard_normal((int(bad.sum()), median.size)))
     return lm, error, initial
 
 
@@ -221,4 +266,4 @@ def _settled(chain: np.ndarray) -> bool:
 TRUST_EDGE = 0.03  # log units: a posterior this close to its trust region's edge leans on it
 MOVED_SD = 1.0  # a posterior median this many sds from the anchors is anchored again (`_leaves`)
 REANCHORINGS = 3  # pilot runs at most before the kept run
-PILOT_STEPS = 200  # a pilot run's steps when there is no burn-in to take its length from
+PILOT_STEPS = 200  # a pilot run's steps at least (a pilot runs the burn-in's length when that is longer)
