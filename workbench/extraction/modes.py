@@ -1,8 +1,9 @@
 """Modal extraction from many FRFs: mode bands, a circle fit per curve, quality-weighted combination.
 
-Builds on `workbench.extraction.circlefit` (one curve, one band): `find_mode_bands` finds the modes across
-sensors and tests (peak detection, with a user override), `split_bands` lists a band twice where a
-two-pole fit (`workbench.extraction.multimode`) finds two modes under one peak, `fit_modes` fits
+Builds on `workbench.extraction.circlefit` (one curve, one band) and `workbench.extraction.bands` (re-exported
+here): `find_mode_bands` finds the modes across sensors and tests (peak detection, with a user override),
+`split_bands` lists a band twice where a two-pole fit (`workbench.extraction.multimode`) finds two modes
+under one peak, `fit_modes` fits
 every curve in every band (a band listed twice: both modes at once, poles common to the curves),
 `combine` merges the curves of one mode with weights from their fit quality, with a 95 % interval,
 and `error_vs_snr` measures the accuracy of the whole chain against synthetic FRFs.
@@ -13,8 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.signal import find_peaks
 
+from workbench.extraction.bands import find_mode_bands, peak_start, split_bands
 from workbench.extraction.circlefit import (
     CLOSE_BANDWIDTHS,
     FLAGS,
@@ -69,157 +70,6 @@ class ModeEstimate:
     @property
     def ok(self) -> bool:
         return not self.flags
-
-
-def _half_power_edges(s: np.ndarray, k: int) -> tuple[float, float]:
-    """Fractional indices where ``s`` first falls below ``s[k] / sqrt(2)`` on each side of ``k``."""
-    level = s[k] / np.sqrt(2.0)
-    left = np.nonzero(s[:k] < level)[0]
-    right = np.nonzero(s[k + 1:] < level)[0]
-    if left.size:
-        i = left[-1]
-        lo = i + (level - s[i]) / (s[i + 1] - s[i])
-    else:
-        lo = 0.0
-    if right.size:
-        j = k + 1 + right[0]
-        hi = j - 1 + (s[j - 1] - level) / (s[j - 1] - s[j])
-    else:
-        hi = float(s.size - 1)
-    return float(lo), float(hi)
-
-
-def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_prominence: float = 0.3,
-                    min_snr: float = 10.0, max_damping: float = 0.1, width_factor: float = 4.0,
-                    min_lines: int = 4,
-                    f_min: float = 0.0, f_max: float = np.inf) -> list[tuple[float, float]]:
-    """Frequency bands around the resonance peaks seen across sensors and tests.
-
-    The summary function is ``S(f) = mean_curves |H(f)| / sigma`` with ``sigma`` each curve's
-    `noise_level` (so no sensor dominates and S reads in noise levels); peaks of ``log10 S`` with a
-    prominence of at least ``min_prominence`` decades and a height of at least ``min_snr`` noise
-    levels are kept (`scipy.signal.find_peaks`), the ``count`` most prominent if given. Each band
-    is the peak +- ``width_factor`` half-power half-widths of S (at least ``min_lines`` lines each
-    side), cut at the minimum of S between neighbouring peaks so that bands do not overlap (unless
-    the cut leaves fewer than `MIN_BAND_POINTS` lines: such a band is widened back, and two peaks
-    that close will be flagged ``"close_mode"`` by `fit_modes`). Bands are a suggestion: `fit_modes`
-    accepts the user's own.
-
-    Parameters
-    ----------
-    frequency_hz : (n_freq,) Hz, strictly increasing.
-    frfs : (n_curves, n_freq) or (n_freq,) complex FRFs (any quantity; peaks of |H|).
-    count : keep at most this many peaks, the most prominent.
-    min_prominence : decades of ``log10 S``.
-    min_snr : minimum peak height of S, in noise levels (modes hidden in noise are not reported).
-    max_damping : peaks whose half-power width exceeds ``2 max_damping f`` are broad humps between
-        antiresonances, not modes, and are dropped.
-    width_factor : band half-width in half-power half-widths.
-    min_lines : minimum lines each side of the peak.
-    f_min, f_max : Hz, peaks outside are ignored.
-
-    Returns
-    -------
-    list of (f_lo, f_hi) in Hz, increasing.
-    """
-    f = _check_frequency(frequency_hz)
-    h = _check_frfs(frfs, f.size)
-    s = np.mean(np.abs(h) / noise_level(h)[:, None], axis=0)
-    log_s = np.log10(np.maximum(s, np.finfo(float).tiny))
-    peaks, props = find_peaks(log_s, prominence=min_prominence, height=np.log10(min_snr))
-    keep = (f[peaks] >= f_min) & (f[peaks] <= f_max) & (f[peaks] > 0)
-    lines = np.arange(f.size, dtype=float)
-    edges = {int(k): _half_power_edges(s, int(k)) for k in peaks[keep]}
-    narrow = np.array([np.interp(edges[k][1], lines, f) - np.interp(edges[k][0], lines, f)
-                       <= 2.0 * max_damping * f[k] for k in peaks], dtype=bool)
-    keep &= narrow
-    peaks, prominence = peaks[keep], props["prominences"][keep]
-    if count is not None and peaks.size > count:
-        peaks = np.sort(peaks[np.argsort(prominence)[::-1][:count]])
-    bands = []
-    for n, k in enumerate(peaks):
-        lo, hi = edges[int(k)]
-        half = max(width_factor * 0.5 * (hi - lo), float(min_lines))
-        i_lo, i_hi = k - half, k + half
-        if n > 0:  # cut at the valley between neighbouring peaks
-            i_lo = max(i_lo, peaks[n - 1] + int(np.argmin(s[peaks[n - 1]:k + 1])))
-        if n < peaks.size - 1:
-            i_hi = min(i_hi, k + int(np.argmin(s[k:peaks[n + 1] + 1])))
-        need = 0.5 * (MIN_BAND_POINTS - 1)  # a cut band keeps enough lines (its mode will be "close")
-        i_lo, i_hi = min(i_lo, k - need), max(i_hi, k + need)
-        i_lo, i_hi = max(i_lo, 0.0), min(i_hi, f.size - 1.0)
-        bands.append((float(np.interp(i_lo, lines, f)), float(np.interp(i_hi, lines, f))))
-    return bands
-
-
-def split_bands(frequency_hz: list, frfs: list, quantity: str, bands) -> list[tuple[float, float]]:
-    """The bands again, a band listed twice where it holds two modes.
-
-    In every test, the curves of each band are fitted with one pole and with two
-    (`workbench.extraction.multimode.second_mode`: poles common to the test's curves); a band whose
-    second pole is accepted in at least half of the tests holds two modes, and is listed twice
-    (band k and k + 1: its lower and upper mode, `fit_modes` then fits both at once). Where the band
-    does not, the same is tried on the band widened by half its width each side (up to its
-    neighbours): `find_mode_bands` drops a peak of less than ``min_prominence`` on the shoulder of
-    a larger one (measured: 0.2 decades for a pair 3 % apart at 0.5 % damping), and its band then
-    misses that mode; the widened band is the one listed twice.
-
-    Parameters
-    ----------
-    frequency_hz : per test, (n_freq,) Hz.
-    frfs : per test, (n_curves, n_freq) complex FRFs in the unit of ``quantity``.
-    quantity : receptance, mobility or accelerance.
-    bands : (f_lo, f_hi) Hz per band, increasing (`find_mode_bands`).
-
-    Returns
-    -------
-    list of (f_lo, f_hi), increasing, each band once or twice.
-    """
-    bands = [(float(lo), float(hi)) for lo, hi in bands]
-    noise = [noise_level(h) for h in frfs]  # each test's, once: not once per band and vote
-    out = []
-    for n, (lo, hi) in enumerate(bands):
-        floor = bands[n - 1][1] if n > 0 else -np.inf
-        ceiling = bands[n + 1][0] if n + 1 < len(bands) else np.inf
-        wide = (max(lo - 0.5 * (hi - lo), floor), min(hi + 0.5 * (hi - lo), ceiling))
-        for band in ((lo, hi), wide):
-            if _holds_two(frequency_hz, frfs, noise, quantity, band):
-                out.extend([band, band])
-                break
-        else:
-            out.append((lo, hi))
-    return out
-
-
-def _holds_two(frequency_hz: list, frfs: list, noise: list, quantity: str, band: tuple[float, float]) -> bool:
-    """True when at least half of the tests accept a second pole in ``band`` (`split_bands`; ``noise``: each
-    test's `noise_level`); the tests are asked in turn until the vote is decided (each is two least-squares
-    pole fits).
-    """
-    voters = []
-    for f, h, sigma in zip(frequency_hz, frfs, noise):
-        f, h = np.asarray(f, float), np.atleast_2d(h)
-        inside = (f >= band[0]) & (f <= band[1])
-        if inside.sum() >= MIN_BAND_POINTS and f[inside][0] > 0.0:
-            voters.append((f, h, sigma, inside))
-    needed = (len(voters) + 1) // 2   # ayes for 2 * ayes >= len(voters)
-    ayes = noes = 0
-    for f, h, sigma, inside in voters:
-        if ayes >= needed or noes > len(voters) - needed:
-            break
-        accepted = second_mode(f, h, band, quantity, sigma, _peak_start(f[inside], h[:, inside]))[2]
-        ayes, noes = ayes + accepted, noes + (not accepted)
-    return bool(voters) and ayes >= needed
-
-
-def _peak_start(f: np.ndarray, h: np.ndarray) -> tuple[float, float]:
-    """(frequency Hz, damping) of the summed |H| peak of a band, from its half-power width."""
-    s = np.sum(np.abs(h) / noise_level(h)[:, None], axis=0)
-    k = int(np.argmax(s))
-    lo, hi = _half_power_edges(s, k)
-    lines = np.arange(f.size, dtype=float)
-    width = float(np.interp(hi, lines, f) - np.interp(lo, lines, f))
-    return float(f[k]), float(np.clip(width / (2.0 * f[k]), 1e-4, 0.1))
 
 
 def fit_modes(frequency_hz, frfs, quantity: str, bands=None, count: int | None = None) -> list[list[ModalFit]]:
@@ -284,7 +134,7 @@ def _multimode_rows(f: np.ndarray, h: np.ndarray, noise: np.ndarray, band: tuple
     curves' `noise_level`).
     """
     inside = (f >= band[0]) & (f <= band[1])
-    start = _peak_start(f[inside], h[:, inside])
+    start = peak_start(f[inside], h[:, inside])
     if m == 2:
         fit = second_mode(f, h, band, quantity, noise, start, screen=False)[1]
     else:  # spread the starts over the middle half of the band
@@ -424,7 +274,8 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
         `split_bands`: a band that holds two modes in most tests is listed twice). A band listed
         twice is fitted with two poles at once (`fit_modes`).
     count : keep the ``count`` lowest modes found.
-    mapper : runs the tests' fits (`workbench.tasks.Mapper`); default, one after the other here.
+    mapper : runs the bands' votes (`split_bands`) and the tests' fits (`workbench.tasks.Mapper`); default, one
+        after the other here.
 
     Returns
     -------
@@ -435,15 +286,15 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
     tests = list(frfs)
     if not tests:
         raise ValueError("extract_tests: no test to extract")
+    run = mapper or serial_mapper()
     if bands is None:
         axis = np.asarray(frequency_hz[tests[0]], float)
         shared = all(np.array_equal(np.asarray(frequency_hz[t], float), axis) for t in tests)
         curves = np.concatenate([np.atleast_2d(frfs[t]) for t in tests]) if shared else np.atleast_2d(frfs[tests[0]])
         bands = split_bands([frequency_hz[t] for t in tests], [frfs[t] for t in tests], quantity,
-                            find_mode_bands(axis, curves))
+                            find_mode_bands(axis, curves), run)
     # the lowest modes, not the most prominent: mode k must be the k-th mode in every use
     bands = sorted((float(lo), float(hi)) for lo, hi in bands)[:count]
-    run = mapper or serial_mapper()
     fitted = run(_fit_test, [(frequency_hz[t], frfs[t]) for t in tests], "circle fits", (quantity, bands))
     return bands, dict(zip(tests, fitted))
 
