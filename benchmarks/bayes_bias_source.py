@@ -44,7 +44,6 @@ from workbench.identify.data import joint_groups, usable_modes
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.identify.pairing import pair_by_mac
 from workbench.model.structure import structure_of
-from workbench.model.tolerance import Tolerances
 from workbench.proving.cases import CaseSpec, case_campaign
 from workbench.proving.nuisances import built_frame
 from workbench.workflow.measured import measured_modes
@@ -68,8 +67,7 @@ def fit_one(design: str, rep: int, fit: str) -> dict:
     try:
         t0 = time.perf_counter()
         misstated = float(fit.split("_x")[1]) if "_x" in fit else 1.0  # a drawing's tolerance stated wrong
-        stated = Tolerances(misstated * STATED.section_sd, misstated * STATED.material_sd) \
-            if fit.startswith("timo_tolerances") else None
+        stated = STATED.scaled(misstated) if fit.startswith("timo_tolerances") else None
         post = bayes_identify(model, data, groups, seed=rep, steps=1000, max_steps=8000, errors=ERROR_TERMS["full"],
                               tolerances=stated)
         wall = time.perf_counter() - t0

@@ -45,6 +45,10 @@ class Tolerances:
             if not (np.isfinite(value) and 0.0 < value <= 0.1):
                 raise ValueError(f"tolerances: {name} {value} is not in (0, 0.1]: a relative standard deviation")
 
+    def scaled(self, factor: float) -> Tolerances:
+        """These tolerances times ``factor``: a drawing's stated too wide or too narrow (`benchmarks/`)."""
+        return Tolerances(factor * self.section_sd, factor * self.material_sd)
+
 
 def tolerance_factors(frame: Frame, tolerances: Tolerances) -> tuple[tuple[str, ...], np.ndarray]:
     """The latent factors' names and their prior sds (P,): each material's ``E`` and ``rho``, then each
