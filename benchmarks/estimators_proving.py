@@ -13,7 +13,8 @@ Euler-Bernoulli and carries none of the as-built errors: a misspecified nominal 
 
 Estimators: moment matching (bootstrap + delta-method intervals); the Bayesian variant with the
 common and discrepancy error terms (``full``) and without them (``none``); on request (``--estimators
-sensitivity``) with each mode's sensitivity error too (`workbench.identify.laplace`). For each: bias and RMSE of
+sensitivity``) with each mode's sensitivity error too (`workbench.identify.laplace`), with the drawing's tolerances
+(``tolerances``, `workbench.identify.members`) or those stated twice too wide (``tolerances_x2``). For each: bias and RMSE of
 each group's mean modulus and CoV against the group's law (the population the intervals target) and
 95 % interval coverage with its Wilson interval; also against the campaign's sample values; wall time;
 the fraction of Bayesian runs that converged (R-hat <= 1.01, ESS >= 400).
@@ -56,9 +57,10 @@ from workbench.workflow.measured import measured_modes
 
 DESIGNS = {"two": "two_bolt", "four": "four_bolt"}
 COUNT = 8  # modes used: the first eight, all in the band on both frames
-# moment matching; Bayes with the error terms, and without; and with each mode's sensitivity error too
 NUISANCES = NuisanceSettings()  # the campaigns' (`case_campaign`'s defaults)
 STATED = Tolerances(NUISANCES.section_sd, NUISANCES.material_sd)  # the drawing's tolerances, as a user states them
+# moment matching; Bayes with the error terms, without them, with each mode's sensitivity error too, with the
+# drawing's tolerances, and with them stated twice too wide
 ESTIMATORS = ("moments", "full", "none", "sensitivity", "tolerances", "tolerances_x2")
 
 
@@ -148,8 +150,9 @@ def _task(_shared: None, job: tuple[str, int, int, int, int, tuple[str, ...], st
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Bias, RMSE (relative, %) and coverage with its Wilson interval per design, estimator, group, parameter, and
-    the sd of the standardised errors ``z = (log estimate - log truth) / (log half-width / 1.96)`` (``z_sd``:
-    1 for intervals of the right width, below 1 for intervals too wide; an interval taken as symmetric in log).
+    the sd about their mean of the standardised errors ``z = (log estimate - log truth) / (log half-width / 1.96)``
+    (``z_sd``, over ``z_n`` intervals with finite positive bounds; an interval taken as symmetric in log): 1 for
+    intervals as wide as the estimates' scatter, below 1 for wider ones (the bias is its own column).
     """
     out = []
     keys = sorted({(r["design"], r["estimator"], r["group"], r["parameter"]) for r in rows})
@@ -162,7 +165,7 @@ def summarise(rows: list[dict]) -> list[dict]:
         hits_sample = sum(r["ci_low"] <= r["sample"] <= r["ci_high"] for r in with_ci)
         lo, hi = wilson(hits, len(with_ci))
         z = [np.log(r["estimate"] / r["population"]) / (np.log(r["ci_high"] / r["ci_low"]) / (2 * 1.96))
-             for r in with_ci if 0 < r["ci_low"] < r["ci_high"]]
+             for r in with_ci if 0 < r["ci_low"] < r["ci_high"] < math.inf]
         out.append({"design": design, "estimator": estimator, "group": group, "parameter": parameter,
                     "runs": len(sel), "bias_pct": 100 * float(err.mean()),
                     "rmse_pct": 100 * float(np.sqrt(np.mean(err**2))), "intervals": len(with_ci),
@@ -170,7 +173,7 @@ def summarise(rows: list[dict]) -> list[dict]:
                     "coverage_sample": hits_sample / len(with_ci) if with_ci else math.nan,
                     "converged": float(np.mean([r["converged"] for r in sel])),
                     "wall_time_s_mean": float(np.mean([r["wall_time_s"] for r in sel])),
-                    "z_sd": float(np.std(z)) if len(z) > 1 else math.nan})
+                    "z_sd": float(np.std(z, ddof=1)) if len(z) > 1 else math.nan, "z_n": len(z)})
     return out
 
 
@@ -182,7 +185,7 @@ def format_summary(summary: list[dict]) -> str:
         lines.append(f"{s['design']:6s} {s['estimator']:11s} {s['group']:10s} {s['parameter']:14s} {s['runs']:3d} "
                      f"{s['bias_pct']:+7.2f} {s['rmse_pct']:7.2f} {s['coverage']:8.0%} [{lo:4.0%}, {hi:4.0%}]"
                      f"{'':4s} {s['coverage_sample']:9.0%} {s['converged']:5.0%} {s['wall_time_s_mean']:7.1f} "
-                     f"{s.get('z_sd', math.nan):7.2f}")
+                     f"{s['z_sd']:7.2f}")
     return "\n".join(lines)
 
 
@@ -195,7 +198,7 @@ def markdown(summary: list[dict]) -> str:
         lines.append(f"| {s['design']} | {s['estimator']} | {s['group']} | {s['parameter']} | {s['runs']} | "
                      f"{s['bias_pct']:+.1f} | {s['rmse_pct']:.1f} | {s['coverage']:.0%} [{lo:.0%}, {hi:.0%}] | "
                      f"{s['coverage_sample']:.0%} | {s['converged']:.0%} | {s['wall_time_s_mean']:.0f} | "
-                     f"{s.get('z_sd', math.nan):.2f} |")
+                     f"{s['z_sd']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -218,8 +221,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     rows_file = args.out / "rows.jsonl"
-    done = {(r["design"], r["rep"]) for r in map(json.loads, rows_file.read_text().splitlines())} \
-        if rows_file.exists() else set()  # resumable: a long study survives an interruption
+    old = [json.loads(line) for line in rows_file.read_text().splitlines()] if rows_file.exists() else []
+    done = {(r["design"], r["rep"]) for r in old}  # resumable: a long study survives an interruption
+    have = {r["estimator"] for r in old if "estimator" in r}
+    want = {e if e == "moments" else f"bayes_{e}" for e in args.estimators}
+    if have and not want <= have:  # a done campaign would be skipped without the estimators asked for
+        parser.error(f"{rows_file}: its rows hold {', '.join(sorted(have))}, not {', '.join(sorted(want - have))}: "
+                     "use another --out")
     pending = [(d, r) for d in args.designs for r in range(args.reps) if (d, r) not in done]
     batch = 2 * max(args.workers, 1) if args.scheduler is None else 8  # rows saved after each batch
     with mapper(args.workers, args.scheduler) as run:

@@ -20,7 +20,7 @@ fits campaign 8, which no step saw, with the same bounds.
 The third is a regression test on a development campaign (1), not a held-out one: stated twice too wide, its
 tolerances once sent the horizontal mean to a confident -24 % (the likelihood stayed anchored where a search
 with fixed error scales had put it); it holds the mend (`workbench.identify.runs.sample_anchored`) to the
-second test's bounds.
+second test's mean bound, with the sample mean inside the interval.
 """
 
 from __future__ import annotations

@@ -229,7 +229,7 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
         print(f"diagnose: {message}", file=sys.stderr, flush=True)
 
     # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
-    with mapper(args.workers, args.scheduler, _progress()) as tasks:  # the tests' circle fits
+    with mapper(args.workers, args.scheduler, _progress()) as tasks:  # band votes, circle fits
         done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None, tasks)
     record, campaign = done.record, done.campaign
     pages = diagnosis_files(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))

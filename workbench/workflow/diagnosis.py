@@ -50,7 +50,8 @@ def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callab
     path : the campaign directory (modes.csv, FRFs, or moments.csv).
     count : use at most the first ``count`` modes.
     notify : called with a short message before each stage.
-    mapper : runs the tests' circle fits (`workbench.tasks.Mapper`); default, one after the other.
+    mapper : runs the bands' votes and the tests' circle fits (`workbench.tasks.Mapper`); default, one after the
+        other.
     """
     campaign = load_campaign(path)
     if notify:

@@ -312,7 +312,8 @@ def measured_modes(campaign: Campaign, count: int | None = None, purpose: str = 
     ----------
     count : use at most the first ``count`` modes.
     purpose : what the modes are for, in the error message when the campaign has none.
-    mapper : runs the tests' circle fits (`workbench.tasks.Mapper`); default, one after the other.
+    mapper : runs the bands' votes and the tests' circle fits (`workbench.tasks.Mapper`); default, one after the
+        other.
 
     Raises
     ------
