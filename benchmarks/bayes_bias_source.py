@@ -36,7 +36,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
-from estimators_proving import COUNT, DESIGNS, STATED
+from estimators_proving import COUNT, DESIGNS, stated_tolerances
 
 from workbench.identify import laplace
 from workbench.identify.bayes import bayes_identify
@@ -66,10 +66,8 @@ def fit_one(design: str, rep: int, fit: str) -> dict:
     laplace.DISCREPANCY_BOUNDS = WIDE if fit == "wide" else kept  # read when the posterior's bounds are built
     try:
         t0 = time.perf_counter()
-        misstated = float(fit.split("_x")[1]) if "_x" in fit else 1.0  # a drawing's tolerance stated wrong
-        stated = STATED.scaled(misstated) if fit.startswith("timo_tolerances") else None
         post = bayes_identify(model, data, groups, seed=rep, steps=1000, max_steps=8000, errors=ERROR_TERMS["full"],
-                              tolerances=stated)
+                              tolerances=stated_tolerances(fit))
         wall = time.perf_counter() - t0
     finally:
         laplace.DISCREPANCY_BOUNDS = kept

@@ -64,6 +64,14 @@ STATED = Tolerances(NUISANCES.section_sd, NUISANCES.material_sd)  # the drawing'
 ESTIMATORS = ("moments", "full", "none", "sensitivity", "tolerances", "tolerances_x2")
 
 
+def stated_tolerances(name: str) -> Tolerances | None:
+    """The tolerances a fit named ``name`` states: the drawing's (`STATED`) where the name holds ``tolerances``,
+    times ``x`` where it ends ``_x<x>`` (stated wrong on purpose); None for a fit without them."""
+    if "tolerances" not in name:
+        return None
+    return STATED.scaled(float(name.split("_x")[1]) if "_x" in name else 1.0)
+
+
 def wilson(hits: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """Wilson score 95 % interval of a rate ``hits / n``."""
     if n == 0:
@@ -101,9 +109,9 @@ def one_campaign(design: str, rep: int, seed: int, steps: int, max_steps: int,
         # "tolerances": the default terms and the drawing's tolerances, stated as the proving ground's
         # manufacturing sds (what a user reads off a drawing and a material certificate); "tolerances_x2":
         # stated twice too wide, as a user padding them for safety might
-        stated = STATED.scaled(2.0 if terms == "tolerances_x2" else 1.0) if terms.startswith("tolerances") else None
         fits[f"bayes_{terms}"] = bayes_identify(model, data, groups, seed=rep, steps=steps, max_steps=max_steps,
-                                                errors=ERROR_TERMS.get(terms, ERROR_TERMS["full"]), tolerances=stated)
+                                                errors=ERROR_TERMS.get(terms, ERROR_TERMS["full"]),
+                                                tolerances=stated_tolerances(terms))
         walls[f"bayes_{terms}"] = time.perf_counter() - t0
     rows = []
     for g, name in enumerate(groups.groups):

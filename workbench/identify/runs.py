@@ -202,14 +202,17 @@ def sample_anchored(lm: LikelihoodModel | LaplaceLikelihood, walkers: int, steps
             if not _leaves(lm, chain):
                 break
             lm, forward_error, initial = _anchored_at(lm, chain, rng)
-    sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
-                           max_steps=max_steps, independence=burn > 0)
+
+    def kept(lm: LikelihoodModel | LaplaceLikelihood, initial: np.ndarray) -> Any:
+        return run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
+                            max_steps=max_steps, independence=burn > 0)
+
+    sampler = kept(lm, initial)
     if not isinstance(lm, LaplaceLikelihood):
         return lm, sampler, forward_error, np.zeros(lm.n_groups, bool)
     if _leaves(lm, sampler.get_chain()):
         lm, forward_error, initial = _anchored_at(lm, sampler.get_chain(), rng)
-        sampler = run_ensemble(lm.log_posterior, initial, steps, burn, seed, progress, until=_settled,
-                               max_steps=max_steps, independence=burn > 0)
+        sampler = kept(lm, initial)
         if _leaves(lm, sampler.get_chain()):
             log.warning("the posterior has left its anchors again after its kept run was re-anchored: its "
                         "intervals lean on where the forward model was anchored")
