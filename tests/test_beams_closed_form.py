@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -118,3 +119,31 @@ def test_compression_beyond_buckling_is_refused():
     n_crit = math.pi**2 * ALUMINIUM["youngs_modulus"] * section["second_moment"] / length**2
     with pytest.raises(ValueError, match="singular model"):
         model_modes(assemble(straight_beam(length, SIMPLY_SUPPORTED, axial_force=-1.5 * n_crit)), 3)
+
+
+def _locked(frame, force: float):
+    return replace(frame, members=tuple(replace(m, locked_force=force) for m in frame.members))
+
+
+def test_locked_force_equals_a_frame_force_where_the_chord_cannot_turn():
+    # pinned-pinned: the chord is held, so a force locked in between the ends is the same load as one the
+    # supports carry (the closed form above)
+    section, length = bar_section(), 0.6
+    n_crit = math.pi**2 * ALUMINIUM["youngs_modulus"] * section["second_moment"] / length**2
+    carried = bending_frequencies(straight_beam(length, SIMPLY_SUPPORTED, axial_force=-0.5 * n_crit), 3)
+    locked = bending_frequencies(_locked(straight_beam(length, SIMPLY_SUPPORTED), -0.5 * n_crit), 3)
+    np.testing.assert_allclose(locked, carried, rtol=1e-9)
+
+
+def test_a_cantilever_tied_to_its_root_buckles_at_the_pinned_columns_load():
+    # a compressive force P that always points at the root (a tie from root to tip), tip deflection d:
+    # EI v'' + P v = P d x / L, v(0) = v'(0) = 0, v(L) = d, so v = d (x / L - sin(kx) / kL) and sin kL = 0:
+    # P = (pi / L)^2 EI, four times a free tip's (pi / 2L)^2 EI, which the same force carried by the clamp gives
+    section, length = bar_section(), 0.6
+    pinned = math.pi**2 * ALUMINIUM["youngs_modulus"] * section["second_moment"] / length**2
+    beam = straight_beam(length, [{"point": "a", **CLAMP}])
+    assert model_modes(assemble(_locked(beam, -0.97 * pinned)), 2).frequency_hz[0] > 0.0
+    for frame in (_locked(beam, -1.03 * pinned), straight_beam(length, [{"point": "a", **CLAMP}],
+                                                                axial_force=-0.3 * pinned)):
+        with pytest.raises(ValueError, match="singular model"):
+            model_modes(assemble(frame), 2)

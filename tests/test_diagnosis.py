@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from conftest import REPO
+from scipy.stats import chi2 as chi2_law
 
 from workbench.cli import main
 from workbench.diagnose.observations import observations
@@ -60,6 +61,30 @@ def test_correlated_scatter_is_not_read_as_a_gap():
     ratio = 4.0  # a chi-square per observation four times its expectation
     assert np.mean(np.array(full) > ratio) < 0.01
     assert np.mean(np.array(diagonal) > ratio) > 0.05
+
+
+def test_fewer_tests_than_modes_do_not_read_a_chance_level_difference_as_softening():
+    # 8 tests at two levels leave 6 degrees of freedom for 10 modes: the sample covariance is singular, and a
+    # chance difference between the levels outside the directions the tests happened to scatter along is
+    # judged against the floor alone. Shrunk (Ledoit-Wolf on the correlations), a 1 % test stays near its level.
+    rng = np.random.default_rng(5)
+    modes, tests = 10, 8
+    amplitude = np.tile([1.0, 5.0], tests // 2)
+    limit = chi2_law.ppf(0.99, modes)
+    shrunk, raw = [], []
+    for _ in range(300):
+        joints = rng.uniform(0.2, 2.0, (4, modes)) * 1e-3  # each joint's modulus moves every mode its own way
+        scatter = rng.standard_normal((tests, 4)) @ joints + 3e-4 * rng.standard_normal((tests, 1))  # + temperature
+        f = 100.0 * (1 + scatter + 2e-5 * rng.standard_normal((tests, modes)))
+        obs = observations(MeasuredModes(f, amplitude=amplitude))
+        d = obs.frequency_hz[1] / obs.frequency_hz[0] - 1  # no effect of the level: chance alone
+        shrunk.append(d @ np.linalg.solve(obs.frequency_cov[0] + obs.frequency_cov[1], d))
+        level_means = np.array([f[amplitude == a].mean(0) for a in amplitude])
+        deviation = (f - level_means) / f.mean(0)
+        sample = deviation.T @ deviation / (tests - 2) / (tests // 2) + 1e-8 * np.eye(modes)  # floor 1e-4
+        raw.append(d @ np.linalg.solve(2 * sample, d))
+    shrunk_rate, raw_rate = np.mean(np.array(shrunk) > limit), np.mean(np.array(raw) > limit)
+    assert shrunk_rate < 0.05 and shrunk_rate < raw_rate / 3, (shrunk_rate, raw_rate)
 
 
 def test_global_joint_shift_scales_every_joint():

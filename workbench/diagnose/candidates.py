@@ -95,12 +95,21 @@ def _stinger_curves(base: Baseline) -> list[Curve | None]:
 
 
 def _axial_curves(base: Baseline) -> list[Curve | None]:
+    """Each member's axial force in its two forms, from its pin-ended Euler load ``pi^2 EI / L^2``.
+
+    Carried through the frame (a load, a support's reaction: the member's sway is softened, P-delta) or
+    locked in between the member's own ends (a tie, a misfit rod, a tightening sequence: its chord carries the
+    force back, so only its bowing between the ends is softened, and it takes more compression before it
+    buckles). The two move the sway modes by factors of ten apart for the same bending modes.
+    """
     frame, _ = base.planar
     curves = []
     for i, m in enumerate(frame.members):
         euler = math.pi ** 2 * _bending(frame, i) / member_length(frame, m) ** 2
-        values = np.unique(np.concatenate([np.linspace(-0.6, 0.0, 10), np.linspace(0.0, 2.0, 16)])) * euler
-        curves.append(sweep(base, AXIAL_PRESTRESS, m.name, values, int(np.flatnonzero(values == 0.0)[0]), False))
+        for reaction, lowest in (("frame", -0.6), ("chord", -1.5)):
+            values = np.unique(np.concatenate([np.linspace(lowest, 0.0, 10), np.linspace(0.0, 2.0, 16)])) * euler
+            curves.append(sweep(base, AXIAL_PRESTRESS, m.name, values, int(np.flatnonzero(values == 0.0)[0]),
+                                False, {"reaction": reaction}))
     return curves
 
 

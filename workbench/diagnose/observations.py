@@ -121,7 +121,36 @@ def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarr
     if usable.any():
         d = np.where(usable, deviation, 0.0)
         covariance = d.T @ d / np.sqrt(np.outer(np.maximum(dof, 1), np.maximum(dof, 1)))
+        covariance = _shrunk(covariance, d, float(np.mean(dof[usable])))
     return covariance, usable
+
+
+def _shrunk(covariance: np.ndarray, deviation: np.ndarray, dof: float) -> np.ndarray:
+    """The test covariance with its correlations shrunk towards none (variances kept), by the Ledoit-Wolf
+    intensity of the correlation matrix (Schaefer & Strimmer 2005, target "D").
+
+    A campaign has fewer degrees of freedom (tests less design columns) than modes: the sample covariance is
+    then singular, and a difference between two levels that falls outside the few directions the tests
+    happened to scatter along is judged against the floor alone, a chi-square of 76 for a chance difference
+    whose diagonal chi-square is 18 (proving-ground seed 5, case 212). Written here because the formula is a few
+    lines on arrays the diagnosis already has (scikit-learn's `ledoit_wolf` shrinks towards a multiple of the
+    identity, and the package does not depend on it).
+    """
+    sd = np.sqrt(np.diag(covariance))
+    live = sd > 0
+    if np.sum(live) < 2 or dof < 1:
+        return covariance
+    rows = deviation[:, live] / sd[live] * np.sqrt(deviation.shape[0] / dof)  # sum of outer products / n = R
+    corr = covariance[np.ix_(live, live)] / np.outer(sd[live], sd[live])
+    off = ~np.eye(corr.shape[0], dtype=bool)
+    spread = sum(float(np.sum(((np.outer(r, r) - corr) ** 2)[off])) for r in rows) / rows.shape[0] ** 2
+    size = float(np.sum(corr[off] ** 2))
+    weight = 1.0 if size == 0.0 else min(1.0, spread / size)
+    shrunk = covariance.copy()
+    block = (1.0 - weight) * covariance[np.ix_(live, live)]
+    block[~off] = covariance[np.ix_(live, live)][~off]
+    shrunk[np.ix_(live, live)] = block
+    return shrunk
 
 
 def _condition_means(values: np.ndarray, amplitude: np.ndarray, floor_rel: float, published_std: np.ndarray | None,

@@ -266,12 +266,25 @@ def _assemble(matrices: np.ndarray, dofs: np.ndarray, index: np.ndarray) -> sp.c
 
 
 def _geometric(frame: Frame, mesh: Mesh, data: ElementData, index: np.ndarray) -> sp.csr_matrix:
-    """Geometric stiffness of the members' locked-in axial forces (``Member.axial_force``), free dofs."""
-    forces = {m.name: m.axial_force for m in frame.members if m.axial_force != 0.0}
-    force = np.array([forces.get(m.name, 0.0) for m in frame.members])[mesh.element_member]
+    """Geometric stiffness of the members' axial forces (``Member.axial_force`` and ``locked_force``), free dofs.
+
+    A force locked in between a member's own ends (``locked_force``) is carried back by its chord: the chord's
+    string stiffness of the opposite force is added, so that the member bows under it between its ends but
+    its sway as a whole is not softened (no P-delta: a tie inside a tube does not buckle the tube).
+    """
+    force = np.array([m.axial_force + m.locked_force for m in frame.members])[mesh.element_member]
     t = elements.rotation(data.cos, data.sin)
-    kg = elements.to_global(elements.geometric_local(data.length, force), t)
-    return _assemble(kg, data.dofs, index)
+    kg = _assemble(elements.to_global(elements.geometric_local(data.length, force), t), data.dofs, index)
+    locked = [m for m in frame.members if m.locked_force != 0.0]
+    if not locked:
+        return kg
+    ends = np.array([[mesh.point_node[m.start], mesh.point_node[m.end]] for m in locked])
+    chord = mesh.node_xy[ends[:, 1]] - mesh.node_xy[ends[:, 0]]
+    length = np.hypot(chord[:, 0], chord[:, 1])
+    string = elements.string_local(length, -np.array([m.locked_force for m in locked]))
+    string = elements.to_global(string, elements.rotation(chord[:, 0] / length, chord[:, 1] / length))
+    dofs = np.hstack([3 * ends[:, :1] + np.arange(3), 3 * ends[:, 1:] + np.arange(3)])
+    return kg + _assemble(string, dofs, index)
 
 
 def _deformations(model: Model, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

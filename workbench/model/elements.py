@@ -121,6 +121,18 @@ def geometric_local(length: np.ndarray, axial_force: np.ndarray) -> np.ndarray:
     return _scatter(L.size, None, bending)
 
 
+def string_local(length: np.ndarray, axial_force: np.ndarray) -> np.ndarray:
+    """Geometric stiffness of a straight bar (a string) of force ``N`` between two nodes, N/m, ``(e, 6, 6)``:
+    ``N / L [1, -1; -1, 1]`` on the transverse dofs, what a force along the chord does when the chord turns.
+    """
+    L = np.asarray(length, float)
+    N = np.broadcast_to(np.asarray(axial_force, float), L.shape)
+    out = np.zeros((L.size, 6, 6))
+    for a, b, sign in ((1, 1, 1.0), (4, 4, 1.0), (1, 4, -1.0), (4, 1, -1.0)):
+        out[:, a, b] = sign * N / L
+    return out
+
+
 def rotation(cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
     """Transformation ``T`` (e, 6, 6) with ``u_local = T @ u_global`` for dofs (ux, uy, rz) per end."""
     c, s = np.asarray(cos, float), np.asarray(sin, float)

@@ -80,6 +80,9 @@ class Member:
     material: str
     section: str
     axial_force: float = 0.0  # N, tension positive (extension of the contract)
+    # N, tension positive: a force locked in between the member's own ends (a tie, tendon or misfit rod
+    # across it), which its chord carries back; not in the frame file (the diagnosis's candidate only)
+    locked_force: float = 0.0
 
 
 @dataclass(frozen=True)

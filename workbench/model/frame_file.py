@@ -439,6 +439,8 @@ def frame_to_toml(frame: Frame) -> str:
                                          "shear_coefficient": sec.shear_coefficient})
     table("[points]", {k: list(v) for k, v in frame.points.items()})
     for m in frame.members:
+        if m.locked_force:  # the diagnosis's candidate only: a frame file has no key for it
+            raise ValueError(f"{frame.source}: member {m.name!r}: a locked-in force has no frame-file key")
         table("[[members]]", {"name": m.name, "start": m.start, "end": m.end, "material": m.material,
                               "section": m.section, "axial_force": m.axial_force or None})
     for j in frame.joints:

@@ -126,7 +126,8 @@ class Effect:
     - shear_deformation: ``{"shear_coefficient": k}`` optional (Timoshenko, default the file's, else
       5/6); ``poisson_ratio`` (default 0.3) for materials whose file gives none;
     - stinger_stiffness: ``{"stiffness": N/m, "dof": the excitation dof}`` added at the point;
-    - axial_prestress: ``{"axial_force": N}`` (tension positive) added to the member's;
+    - axial_prestress: ``{"axial_force": N}`` (tension positive) added to the member's, carried through the
+      frame; with ``"reaction": "chord"`` locked in between the member's own ends (``Member.locked_force``);
     - joint_stiffness_shift: ``{"factor": f}`` times the joint's mean modulus (every joint's when
       ``where`` is None: the file's joint model itself is off);
     - amplitude_softening: ``{"s0": s, "ps_n": N}``: the joint's softening coefficient becomes s;
@@ -211,7 +212,13 @@ def _stinger_stiffness(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
 
 
 def _axial_prestress(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
-    return set_member(frame, w, axial_force=frame.member(w).axial_force + float(p["axial_force"]))
+    member, force = frame.member(w), float(p["axial_force"])
+    reaction = p.get("reaction", "frame")
+    if reaction == "chord":
+        return set_member(frame, w, locked_force=member.locked_force + force)
+    if reaction != "frame":
+        raise ValueError(f"axial_prestress: reaction must be 'frame' or 'chord', got {reaction!r}")
+    return set_member(frame, w, axial_force=member.axial_force + force)
 
 
 def _joint_stiffness_shift(frame: Frame, w: str | None, p: dict[str, Any]) -> Frame:
