@@ -107,7 +107,7 @@ def _parameter_count(curve: Curve) -> int:
     return 3 if curve.effect == ADDED_MASS.name else 1
 
 
-def _damping_forms(obs: Observations, share: np.ndarray) -> dict[str, np.ndarray]:
+def _damping_forms(obs: Observations, share: np.ndarray) -> dict[str, tuple[np.ndarray, dict]]:
     """A joint's damping ratio per unit of its loss parameter, mode by mode, in the two textbook forms.
 
     ``hysteretic``: a loss factor (friction, material loss), ``zeta_i = eta * e_i`` with ``e_i`` the joint's
@@ -116,8 +116,17 @@ def _damping_forms(obs: Observations, share: np.ndarray) -> dict[str, np.ndarray
     frequency, where ``eta`` is read). Over a band of a decade or more the two forms damp the modes very
     differently, and a dashpot fitted as a loss factor predicts no held-out mode.
     """
-    ratio = np.nan_to_num(obs.frequency_hz / np.nanmean(obs.frequency_hz))
-    return {"hysteretic": np.asarray(share, float), "viscous": share * ratio}
+    reference = float(np.nanmean(obs.frequency_hz))
+    ratio = np.nan_to_num(obs.frequency_hz / reference)
+    return {"hysteretic": (np.asarray(share, float), {"form": "hysteretic"}),
+            "viscous": (share * ratio, {"form": "viscous", "reference_hz": reference})}
+
+
+def _stated_damping_fit(obs: Observations, share: np.ndarray, stated: dict, mask: np.ndarray) -> tuple[np.ndarray,
+                                                                                                        dict]:
+    """`damping_fit` whose parameters also state the form they are read in (the report shows them)."""
+    predicted, parameters = damping_fit(obs, share, mask)
+    return predicted, {**parameters, **stated}
 
 
 def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], baseline_hz: np.ndarray,
@@ -148,9 +157,9 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
             models[fit.key] = model
     if obs.damping is not None:
         for j, joint in enumerate(base.frame.joint_names):
-            for form, share in _damping_forms(obs, joint_share[j]).items():
+            for form, (share, stated) in _damping_forms(obs, joint_share[j]).items():
                 fit, _ = evaluate(JOINT_DAMPING.name, joint, lambda u: {}, JOINT_DAMPING.channel, None,
-                                  partial(damping_fit, obs, share), obs, baseline_hz, 1, form)
+                                  partial(_stated_damping_fit, obs, share, stated), obs, baseline_hz, 1, form)
                 ranking.append(fit)
                 predictions[fit.key] = baseline_hz
     ranking.sort(key=lambda c: (c.heldout_score, c.bic))

@@ -2,8 +2,10 @@
 
 `find_mode_bands` finds the peaks across sensors and tests (peak detection; a user may give their own
 bands instead), and `split_bands` lists a band twice where a two-pole fit
-(`workbench.extraction.multimode`) finds two modes under one peak in most tests. `workbench.extraction.modes`
-fits the bands.
+(`workbench.extraction.multimode`) finds two modes under one peak in most tests, and `track_bands` follows each
+mode from test to test (a joint that softens with the excitation level moves a mode by a few percent between
+levels: the bands found across all tests then hold it at two places). `workbench.extraction.modes` fits the
+bands.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from workbench.extraction.circlefit import MIN_BAND_POINTS, _check_frequency, _c
 from workbench.extraction.multimode import second_mode
 from workbench.tasks import Mapper, serial_mapper
 
-__all__ = ["find_mode_bands", "split_bands", "peak_start"]
+__all__ = ["find_mode_bands", "split_bands", "track_bands", "peak_start"]
 
 
 def _half_power_edges(s: np.ndarray, k: int) -> tuple[float, float]:
@@ -177,3 +179,91 @@ def peak_start(f: np.ndarray, h: np.ndarray) -> tuple[float, float]:
     lines = np.arange(f.size, dtype=float)
     width = float(np.interp(hi, lines, f) - np.interp(lo, lines, f))
     return float(f[k]), float(np.clip(width / (2.0 * f[k]), 1e-4, 0.1))
+
+
+def track_bands(frequency_hz: list, frfs: list, bands) -> tuple[list[tuple[float, float]],
+                                                                 list[list[tuple[float, float]]]]:
+    """Each mode's band in each test: moved onto the test's own peak, and one mode seen at two places merged.
+
+    The bands found across every test sit on the peaks of their summary. A mode that moves between tests by more
+    than its band's half-width (a joint softening with the excitation level: 1.5-3 % between two levels at
+    0.4 % damping) has its peak at one edge of the band, or two bands, each holding it in some tests only.
+    Per test, each band's search window runs from the midpoint with its lower neighbour's centre to the midpoint
+    with its upper one; the test holds the mode there when the largest of its summary ``mean |H| / noise`` is
+    inside the window and at least ``sqrt 2`` times the window's ends (a half-power peak). Then:
+
+    - two neighbouring bands that no test holds both of, each held by some test, are one mode: merged;
+    - each test's band is moved (its width kept) to centre on the test's own peak, within the window.
+
+    A band listed twice (`split_bands`: two modes under one peak) is left as it is.
+
+    Parameters
+    ----------
+    frequency_hz : per test, (n_freq,) Hz.
+    frfs : per test, (n_curves, n_freq) complex FRFs.
+    bands : (f_lo, f_hi) Hz per band, increasing, a band holding two modes listed twice.
+
+    Returns
+    -------
+    The bands, merged (a merged band spans both), and per test its bands in the same order.
+    """
+    bands = [(float(lo), float(hi)) for lo, hi in bands]
+    if not bands:
+        return [], [[] for _ in frfs]
+    summaries = [np.mean(np.abs(np.atleast_2d(h)) / noise_level(np.atleast_2d(h))[:, None], axis=0) for h in frfs]
+    twice = [bands.count(b) > 1 for b in bands]
+    centres = [_centre(frequency_hz, summaries, b) for b in bands]
+    widths = [hi - lo for lo, hi in bands]
+    windows = [(0.5 * (centres[k - 1] + centres[k]) if k > 0 else bands[k][0] - 0.5 * widths[k],
+                0.5 * (centres[k] + centres[k + 1]) if k + 1 < len(bands) else bands[k][1] + 0.5 * widths[k])
+               for k in range(len(bands))]
+    peaks = np.array([[np.nan if twice[k] else _own_peak(np.asarray(f, float), s, windows[k])
+                       for k in range(len(bands))] for f, s in zip(frequency_hz, summaries)])
+    groups: list[list[int]] = [[0]]
+    for k in range(1, len(bands)):
+        held = ~np.isnan(peaks[:, [groups[-1][-1], k]])
+        one_mode = (not twice[k] and not twice[k - 1] and held[:, 0].any() and held[:, 1].any()
+                    and not (held[:, 0] & held[:, 1]).any())
+        if one_mode:
+            groups[-1].append(k)
+        else:
+            groups.append([k])
+    merged = [(bands[g[0]][0], bands[g[-1]][1]) if len(g) > 1 else bands[g[0]] for g in groups]
+    per_test = []
+    for row in peaks:
+        own = []
+        for g in groups:
+            k = next((k for k in g if not np.isnan(row[k])), g[0])
+            lo, hi = bands[k]
+            if np.isnan(row[k]):
+                own.append((lo, hi))
+                continue
+            shift = row[k] - centres[k]  # the band's width kept, its centre on the test's peak, never past
+            floor = min(windows[g[0]][0], bands[g[0]][0])  # its window or its group's bands, whichever is wider
+            ceiling = max(windows[g[-1]][1], bands[g[-1]][1])
+            own.append((max(lo + shift, floor), min(hi + shift, ceiling)))
+        per_test.append(own)
+    return merged, per_test
+
+
+def _centre(frequency_hz: list, summaries: list, band: tuple[float, float]) -> float:
+    """Hz: the peak of the tests' summed summary in ``band`` (the tests on one axis, else the first test's)."""
+    f = np.asarray(frequency_hz[0], float)
+    same = all(np.array_equal(np.asarray(g, float), f) for g in frequency_hz)
+    total = np.sum(summaries, axis=0) if same else summaries[0]
+    inside = (f >= band[0]) & (f <= band[1])
+    if not inside.any():
+        return 0.5 * (band[0] + band[1])
+    return float(f[inside][np.argmax(total[inside])])
+
+
+def _own_peak(f: np.ndarray, s: np.ndarray, window: tuple[float, float]) -> float:
+    """Hz: one test's half-power peak inside ``window`` (`track_bands`), NaN when it has none there."""
+    inside = np.flatnonzero((f >= window[0]) & (f <= window[1]))
+    if inside.size < 3:
+        return float("nan")
+    values = s[inside]
+    k = int(np.argmax(values))
+    if k in (0, values.size - 1) or values[k] < np.sqrt(2.0) * max(values[0], values[-1]):
+        return float("nan")
+    return float(f[inside][k])

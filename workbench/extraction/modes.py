@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from workbench.extraction.bands import find_mode_bands, peak_start, split_bands
+from workbench.extraction.bands import find_mode_bands, peak_start, split_bands, track_bands
 from workbench.extraction.circlefit import (
     CLOSE_BANDWIDTHS,
     FLAGS,
@@ -255,9 +255,9 @@ def _combined_interval(w: np.ndarray, x: np.ndarray, ci: np.ndarray) -> tuple[fl
 
 
 def _fit_test(shared: tuple, task: tuple) -> list[ModeEstimate]:
-    """One test's modes: ``shared = (quantity, bands)``, ``task = (frequency_hz, frfs)``."""
-    quantity, bands = shared
-    f, h = task
+    """One test's modes: ``shared = (quantity,)``, ``task = (frequency_hz, frfs, the test's bands)``."""
+    (quantity,) = shared
+    f, h, bands = task
     return [combine(row) for row in fit_modes(f, np.atleast_2d(h), quantity, bands)]
 
 
@@ -293,9 +293,13 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
         curves = np.concatenate([np.atleast_2d(frfs[t]) for t in tests]) if shared else np.atleast_2d(frfs[tests[0]])
         bands = split_bands([frequency_hz[t] for t in tests], [frfs[t] for t in tests], quantity,
                             find_mode_bands(axis, curves), run)
-    # the lowest modes, not the most prominent: mode k must be the k-th mode in every use
-    bands = sorted((float(lo), float(hi)) for lo, hi in bands)[:count]
-    fitted = run(_fit_test, [(frequency_hz[t], frfs[t]) for t in tests], "circle fits", (quantity, bands))
+        # the lowest modes, not the most prominent: mode k must be the k-th mode in every use
+        bands, own = track_bands([frequency_hz[t] for t in tests], [frfs[t] for t in tests], sorted(bands))
+        bands, own = bands[:count], [b[:count] for b in own]
+    else:  # the user's bands, as given
+        bands = sorted((float(lo), float(hi)) for lo, hi in bands)[:count]
+        own = [bands] * len(tests)
+    fitted = run(_fit_test, [(frequency_hz[t], frfs[t], b) for t, b in zip(tests, own)], "circle fits", (quantity,))
     return bands, dict(zip(tests, fitted))
 
 
