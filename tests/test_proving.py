@@ -35,7 +35,7 @@ from workbench.proving.beams import BeamSet, assemble, beam_local, beam_matrices
 from workbench.proving.campaigns import CampaignSettings, simulate_campaign
 from workbench.proving.cases import KINDS, CaseSpec, case_campaign, case_mix, design_of, expected_verdict
 from workbench.proving.fem import discretise
-from workbench.proving.footprint import article_frequencies, calibrate
+from workbench.proving.footprint import article_frequencies, calibrate, footprint
 from workbench.proving.frames import FRAME_NAMES, FRAMES_DIR, proving_frame
 from workbench.proving.mechanisms import EFFECTS, NONE, OUTSIDE, VARIANTS, vocabulary_mechanism
 from workbench.proving.outside import OUTSIDE_VARIANTS, outside_mechanism
@@ -411,6 +411,21 @@ def test_calibration_hits_the_footprint(two_bolt):
     stocky = vocabulary_mechanism(frame, "shear_deformation", np.random.default_rng(5))
     x, reached = calibrate(base, stocky, 0.01)
     assert abs(reached / 0.01 - 1) <= 0.05 and x > 1 and stocky.nominal(frame, x).beam_theory == "euler-bernoulli"
+
+
+def test_the_footprint_counts_only_the_modes_the_band_holds(two_bolt):
+    # a shift above the campaign's band is never measured: a "large" case must be large in the band
+    frame, base, _ = two_bolt
+    mech = vocabulary_mechanism(frame, "support_compliance", np.random.default_rng(5))
+    x = mech.bounds[0] ** 0.5 * mech.bounds[1] ** 0.5
+    f0, f1 = article_frequencies(base), article_frequencies(mech.build(base, x))
+    f_max = 0.5 * (f0[2] + f0[3])
+    expected = float(np.max(np.abs(f1[:3] / f0[:3] - 1.0)))  # the first three modes, in order
+    assert footprint(base, mech, x, f_max_hz=f_max) == pytest.approx(expected, rel=1e-9)
+    assert footprint(base, mech, x) == pytest.approx(float(np.max(np.abs(f1 / f0 - 1.0))), rel=1e-9)
+    x, reached = calibrate(base, mech, 0.01, f_max_hz=f_max)
+    assert abs(reached / 0.01 - 1) <= 0.05
+    assert np.max(np.abs(article_frequencies(mech.build(base, x))[:3] / f0[:3] - 1.0)) == pytest.approx(reached)
 
 
 def test_every_variant_is_known():

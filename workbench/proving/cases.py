@@ -200,14 +200,15 @@ def case_campaign(spec: CaseSpec, settings: CampaignSettings | None = None,
     article, primary, secondary = base, None, None
     if effect not in (NONE, IDENTIFICATION):
         mech = _mechanism(frame, effect, spec.variant, spec.where, rng)
-        x, fp = calibrate(base, mech, _target(mech, spec.level))
+        band = (settings or CampaignSettings()).f_max_hz  # a shift above the band is never measured
+        x, fp = calibrate(base, mech, _target(mech, spec.level), f_max_hz=band)
         article, primary = mech.build(base, x), _effect_record(mech, x, fp, _target(mech, spec.level))
         if mech.nominal is not None:
             nominal = mech.nominal(frame, x)
         if spec.secondary is not None:
             second = _mechanism(frame, spec.secondary, spec.secondary_variant, None, rng)
             target = _target(second, spec.level, SECONDARY_SHARE)
-            x2, fp2 = calibrate(base, second, target)
+            x2, fp2 = calibrate(base, second, target, f_max_hz=band)
             article, secondary = second.build(article, x2), _effect_record(second, x2, fp2, target)
     if spec.design == "blind":
         nominal = replace(nominal, joints=tuple(replace(j, cov=0.0) for j in nominal.joints))

@@ -4,11 +4,11 @@ A magnitude ladder means something only relative to the noise floor, and the sam
 differently on each geometry. So the cases ask for a **footprint** and the intensity ``x`` of the
 mechanism is found to give it (`calibrate`):
 
-- ``frequency``: the largest relative shift of the article's modes below the band's top against the
-  nominal article (each nominal mode paired with the nearest shifted one);
+- ``frequency``: the largest relative shift of the article's modes below the band's top (of its first
+  `FOOTPRINT_MODES`) against the nominal article (each nominal mode paired with the nearest shifted one);
 - ``amplitude``: the same between the lowest and the highest amplitude (high = 5 x low, paper 2.2.2);
-- ``damping``: the largest added damping ratio of a mode, ``phi_r^T C phi_r / (2 omega_r)`` (first order
-  in the dashpots' C, mass-normalised modes).
+- ``damping``: the largest added damping ratio of a mode below the band's top, ``phi_r^T C phi_r /
+  (2 omega_r)`` (first order in the dashpots' C, mass-normalised modes).
 
 Everything is computed on nuisance-free articles at the joints' mean moduli.
 """
@@ -39,16 +39,21 @@ def article_frequencies(article: Article, count: int = FOOTPRINT_MODES, amplitud
     return solve_modes(d.system.stiffness, d.system.mass, count).frequency_hz
 
 
-def _largest_shift(reference: np.ndarray, shifted: np.ndarray) -> float:
+def _largest_shift(reference: np.ndarray, shifted: np.ndarray, f_max_hz: float = math.inf) -> float:
+    reference = reference[reference <= f_max_hz] if np.any(reference <= f_max_hz) else reference[:1]
     nearest = shifted[np.argmin(np.abs(np.log(shifted[None, :] / reference[:, None])), axis=1)]
     return float(np.max(np.abs(nearest / reference - 1.0)))
 
 
-def footprint(base: Article, mechanism: Mechanism, x: float, count: int = FOOTPRINT_MODES) -> float:
-    """The footprint (module docstring) of ``mechanism`` at intensity ``x`` on the article ``base``."""
+def footprint(base: Article, mechanism: Mechanism, x: float, count: int = FOOTPRINT_MODES,
+              f_max_hz: float = math.inf) -> float:
+    """The footprint (module docstring) of ``mechanism`` at intensity ``x`` on the article ``base``, over its
+    first ``count`` modes below ``f_max_hz`` (the campaign's band: a shift above it is never measured).
+    """
     article = mechanism.build(base, x)
     if mechanism.channel == "amplitude":
-        return _largest_shift(article_frequencies(article, count), article_frequencies(article, count, HIGH_AMPLITUDE))
+        return _largest_shift(article_frequencies(article, count), article_frequencies(article, count, HIGH_AMPLITUDE),
+                              f_max_hz)
     if mechanism.channel == "damping":
         frame = article.frame
         d = discretise(article, {j.name: j.youngs_modulus for j in frame.joints})
@@ -56,15 +61,17 @@ def footprint(base: Article, mechanism: Mechanism, x: float, count: int = FOOTPR
         if d.system.damping is None:
             return 0.0
         added = np.einsum("ir,ir->r", modes.shapes, d.system.damping @ modes.shapes) / (2.0 * modes.omega)
-        return float(added.max())
+        inside = modes.frequency_hz <= f_max_hz
+        return float(added[inside].max() if inside.any() else added[0])
     reference = base if mechanism.nominal is None else Article(mechanism.nominal(base.frame, x), shear=False,
                                                                 rotary_inertia=False)
-    return _largest_shift(article_frequencies(reference, count), article_frequencies(article, count + 4))
+    return _largest_shift(article_frequencies(reference, count), article_frequencies(article, count + 4), f_max_hz)
 
 
 def calibrate(base: Article, mechanism: Mechanism, target: float, tolerance: float = 0.05,
-              iterations: int = 30) -> tuple[float, float]:
-    """The intensity whose footprint is ``target`` (within ``tolerance``, relative), and that footprint.
+              iterations: int = 30, f_max_hz: float = math.inf) -> tuple[float, float]:
+    """The intensity whose footprint is ``target`` (within ``tolerance``, relative), and that footprint
+    (`footprint` over the modes below ``f_max_hz``).
 
     Regula falsi (Illinois) on ``log footprint`` against ``log x`` inside ``mechanism.bounds``: the footprint
     grows with ``x``; a target beyond the bounds' footprints gives the bound.
@@ -72,7 +79,7 @@ def calibrate(base: Article, mechanism: Mechanism, target: float, tolerance: flo
     lo, hi = (math.log(v) for v in mechanism.bounds)
 
     def g(log_x: float) -> tuple[float, float]:
-        fp = footprint(base, mechanism, math.exp(log_x))
+        fp = footprint(base, mechanism, math.exp(log_x), f_max_hz=f_max_hz)
         return math.log(max(fp, 1e-300) / target), fp
 
     g_lo, fp_lo = g(lo)
