@@ -135,15 +135,19 @@ def test_locked_force_equals_a_frame_force_where_the_chord_cannot_turn():
     np.testing.assert_allclose(locked, carried, rtol=1e-9)
 
 
-def test_a_cantilever_tied_to_its_root_buckles_at_the_pinned_columns_load():
+@pytest.mark.parametrize("angle", [0.0, 0.65, math.pi / 2])
+def test_a_cantilever_tied_to_its_root_buckles_at_the_pinned_columns_load(angle):
     # a compressive force P that always points at the root (a tie from root to tip), tip deflection d:
     # EI v'' + P v = P d x / L, v(0) = v'(0) = 0, v(L) = d, so v = d (x / L - sin(kx) / kL) and sin kL = 0:
     # P = (pi / L)^2 EI, four times a free tip's (pi / 2L)^2 EI, which the same force carried by the clamp gives
     section, length = bar_section(), 0.6
     pinned = math.pi**2 * ALUMINIUM["youngs_modulus"] * section["second_moment"] / length**2
-    beam = straight_beam(length, [{"point": "a", **CLAMP}])
+    def tilted(frame):  # the same beam at ``angle`` in the plane: the chord's stiffness is rotated with it
+        return replace(frame, points={**frame.points, "b": (length * math.cos(angle), length * math.sin(angle))})
+
+    beam = tilted(straight_beam(length, [{"point": "a", **CLAMP}]))
     assert model_modes(assemble(_locked(beam, -0.97 * pinned)), 2).frequency_hz[0] > 0.0
-    for frame in (_locked(beam, -1.03 * pinned), straight_beam(length, [{"point": "a", **CLAMP}],
-                                                                axial_force=-0.3 * pinned)):
+    for frame in (_locked(beam, -1.03 * pinned), tilted(straight_beam(length, [{"point": "a", **CLAMP}],
+                                                                      axial_force=-0.3 * pinned))):
         with pytest.raises(ValueError, match="singular model"):
             model_modes(assemble(frame), 2)

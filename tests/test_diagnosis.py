@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 from conftest import REPO
 from scipy.stats import chi2 as chi2_law
+from scipy.stats import f as f_law
 
 from workbench.cli import main
-from workbench.diagnose.observations import observations
+from workbench.diagnose.observations import level_contrast_chi2, observations
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.extraction.records import MeasuredModes
 from workbench.model.assembly import assemble
@@ -66,12 +67,12 @@ def test_correlated_scatter_is_not_read_as_a_gap():
 def test_fewer_tests_than_modes_do_not_read_a_chance_level_difference_as_softening():
     # 8 tests at two levels leave 6 degrees of freedom for 10 modes: the sample covariance is singular, and a
     # chance difference between the levels outside the directions the tests happened to scatter along is
-    # judged against the floor alone. Shrunk (Ledoit-Wolf on the correlations), a 1 % test stays near its level.
+    # judged against the floor alone. Regularised, and the levels' chi-square read against F with the scatter's
+    # 6 degrees of freedom (level_contrast_chi2), a 1 % test keeps near its level.
     rng = np.random.default_rng(5)
     modes, tests = 10, 8
     amplitude = np.tile([1.0, 5.0], tests // 2)
-    limit = chi2_law.ppf(0.99, modes)
-    shrunk, raw = [], []
+    shrunk, raw, f_p = [], [], []
     for _ in range(300):
         joints = rng.uniform(0.2, 2.0, (4, modes)) * 1e-3  # each joint's modulus moves every mode its own way
         scatter = rng.standard_normal((tests, 4)) @ joints + 3e-4 * rng.standard_normal((tests, 1))  # + temperature
@@ -79,12 +80,16 @@ def test_fewer_tests_than_modes_do_not_read_a_chance_level_difference_as_softeni
         obs = observations(MeasuredModes(f, amplitude=amplitude))
         d = obs.frequency_hz[1] / obs.frequency_hz[0] - 1  # no effect of the level: chance alone
         shrunk.append(d @ np.linalg.solve(obs.frequency_cov[0] + obs.frequency_cov[1], d))
+        contrast, q = level_contrast_chi2(obs, np.full_like(obs.frequency_hz, 100.0))
+        f_p.append(f_law.sf(contrast / q, q, obs.scatter_dof))
         level_means = np.array([f[amplitude == a].mean(0) for a in amplitude])
         deviation = (f - level_means) / f.mean(0)
         sample = deviation.T @ deviation / (tests - 2) / (tests // 2) + 1e-8 * np.eye(modes)  # floor 1e-4
         raw.append(d @ np.linalg.solve(2 * sample, d))
+    limit = chi2_law.ppf(0.99, modes)
     shrunk_rate, raw_rate = np.mean(np.array(shrunk) > limit), np.mean(np.array(raw) > limit)
     assert shrunk_rate < 0.05 and shrunk_rate < raw_rate / 3, (shrunk_rate, raw_rate)
+    assert obs.scatter_dof == tests - 2 and np.mean(np.array(f_p) < 0.01) <= 0.02
 
 
 def test_global_joint_shift_scales_every_joint():
@@ -146,6 +151,11 @@ def test_amplitude_softening_needs_two_amplitudes_and_is_told_from_a_shift():
     assert result.ranking[0].parameters["slope"] == pytest.approx(0.03, rel=0.05)
     shift = next(c for c in result.ranking if c.effect == "joint_stiffness_shift" and c.where == "A")
     assert shift.heldout_chi2 > 10 * result.ranking[0].heldout_chi2
+    # damping as flat as the model's (2 % scatter): the levels' frequency differences are no damping evidence
+    rng = np.random.default_rng(4)
+    flat = replace(data, damping_ratio=0.005 * (1 + 0.02 * rng.standard_normal(data.frequency_hz.shape)))
+    gaps = diagnose(frame, flat).gaps
+    assert gaps["frequency"]["levels"]["gap"] and not gaps["damping"]["gap"], gaps["damping"]
 
 
 @SLOW
@@ -410,7 +420,9 @@ def test_the_scatter_a_design_puts_between_tests_is_not_read_as_chance():
     se = designed.frequency_se[0] / designed.frequency_hz[0]
     expected = np.sqrt((5e-4) ** 2 / 12 + 1e-4 ** 2)  # the chance scatter of a mean, and the relative floor
     assert np.sqrt(np.mean(se ** 2)) == pytest.approx(expected, rel=0.3)
-    assert np.all(plain.frequency_se[0] / plain.frequency_hz[0] > 3 * se)
+    # read as chance, the design's spread (0.3-1 %) swamps the 0.05 % scatter; the margin is 2, not 3, since the
+    # regularised covariance (observations._shrunk) keeps the larger variance along each direction
+    assert np.all(plain.frequency_se[0] / plain.frequency_hz[0] > 2 * se)
     with pytest.raises(ValueError, match="design"):
         MeasuredModes(f, design=level[:5, None])
 

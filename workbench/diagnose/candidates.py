@@ -3,10 +3,11 @@
 Every effect of `workbench.rig.effects.EFFECTS` that is a candidate, at each place of the kind it
 names, gets a grid of its parameter (`workbench.diagnose.curves.sweep`): a support's rotational
 stiffness (clamped supports from a hundredth of the beam's EI / L up), the stinger's stiffness
-(around the drive point's static stiffness), each member's axial force (-0.6 to 2 Euler loads),
-each joint's modulus factor (0.1 to 10, and every joint at once), the shear coefficient
-(Euler-Bernoulli frames), and an added mass. Amplitude softening and joint damping reuse the joint
-curves and the energy shares (`workbench.diagnose.verdict`).
+(around the drive point's static stiffness), each member's axial force (-0.6 to 2 Euler loads carried
+through the frame, -1.5 to 2 locked in between the member's own ends), each joint's modulus factor
+(0.1 to 10, and every joint at once), the shear coefficient (Euler-Bernoulli frames), and an added
+mass. Amplitude softening and joint damping (hysteretic or viscous) reuse the joint curves and the
+energy shares (`workbench.diagnose.verdict`).
 
 **Mass position.** A first-order screen (`workbench.diagnose.localise.explained` of each mesh
 node's translation) picks the few best places; around each, nearby nodes are fitted on a coarse

@@ -35,11 +35,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import chi2 as chi2_law
+from scipy.stats import f as f_law
 
 from workbench.diagnose.combined import PairFit
 from workbench.diagnose.fitting import CandidateFit
-from workbench.diagnose.observations import Observations, frequency_chi2
-from workbench.rig.effects import NONE, UNEXPLAINED
+from workbench.diagnose.observations import Observations, frequency_chi2, level_contrast_chi2
+from workbench.rig.effects import AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
 __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
            "channel_gaps", "decide", "type_confidence"]
@@ -76,19 +77,32 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
     chi2_f = frequency_chi2(obs, baseline_hz)
     chi2_d = baseline_fit.chi2 - chi2_f  # the damping baseline's in-sample part
+    contrast, q = level_contrast_chi2(obs, baseline_hz) if math.isfinite(obs.scatter_dof) else (0.0, 0)
     out = {}
-    for name, value, dof in (("frequency", chi2_f, n_f), ("damping", chi2_d, n_d - DAMPING_PARAMETERS)):
+    for name, value, dof in (("frequency", chi2_f - contrast, n_f - q), ("damping", chi2_d, n_d - DAMPING_PARAMETERS)):
         if dof < 1:
             continue
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
-        evidence = _evidence([c for c in ranking or [] if c.channel == name], value, name)
-        out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "omnibus": bool(value > threshold),
-                     "evidence": evidence, "gap": bool(value > threshold or evidence["p_value"] < GAP_LEVEL),
+        whole = chi2_f if name == "frequency" else chi2_d  # the candidates' chi-squares hold the levels' part
+        evidence = _evidence([c for c in ranking or [] if c.channel == name], whole, name, obs.scatter_dof)
+        omnibus = value > threshold
+        out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "evidence": evidence,
                      "observations": n_f if name == "frequency" else n_d}
+        if name == "frequency" and q:  # the levels' differences, against the scatter measured with few tests
+            p_levels = float(f_law.sf(contrast / q, q, obs.scatter_dof))
+            softening = _evidence([c for c in ranking or [] if c.effect == AMPLITUDE_SOFTENING.name], chi2_f,
+                                  name, obs.scatter_dof)
+            out[name]["levels"] = {"chi2": float(contrast), "dof": q, "scatter_dof": obs.scatter_dof,
+                                   "p_value": p_levels, "softening_p_value": softening["p_value"],
+                                   "gap": bool(min(p_levels, softening["p_value"]) < GAP_LEVEL)}
+            omnibus = omnibus or p_levels < GAP_LEVEL
+        out[name]["omnibus"] = bool(omnibus)
+        out[name]["gap"] = bool(omnibus or evidence["p_value"] < GAP_LEVEL)
     return out
 
 
-def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str) -> dict:
+def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str,
+              scatter_dof: float = math.inf) -> dict:
     """The targeted test of a channel: the candidate whose fit lowers the in-sample chi-square the most beyond
     chance, each drop read as chi-square with the candidate's parameter count (Wilks), its p-value multiplied
     by the number of candidates tried (Bonferroni, so that a search over many effects and places is not read
@@ -101,7 +115,12 @@ def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str
         drop = baseline_chi2 - in_sample
         if not math.isfinite(drop) or drop <= 0.0:
             continue
-        p = min(1.0, float(chi2_law.sf(drop, max(c.parameter_count, 1))) * len(candidates))
+        k = max(c.parameter_count, 1)
+        if c.effect == AMPLITUDE_SOFTENING.name and math.isfinite(scatter_dof):  # its evidence is the levels'
+            p_one = float(f_law.sf(drop / k, k, scatter_dof))  # differences, their scatter from a few tests: F
+        else:
+            p_one = float(chi2_law.sf(drop, k))
+        p = min(1.0, p_one * len(candidates))
         if p < best["p_value"]:
             best = {"effect": c.effect, "where": c.where, "chi2_drop": float(drop), "p_value": p,
                     "candidates": len(candidates)}
@@ -177,7 +196,11 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
 def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
              gap: dict) -> tuple[CandidateFit | None, float, CandidateFit | None]:
     """``(named candidate or None, its confidence, the best candidate)`` on one channel with a gap."""
-    eligible = sorted((c for c in ranking if c.channel == channel and math.isfinite(_score(c))), key=_score)
+    # an effect of the levels' differences only where they differ beyond chance (as a damping gap never
+    # licenses a frequency effect)
+    levels_differ = gap.get("levels", {}).get("gap", True)
+    eligible = sorted((c for c in ranking if c.channel == channel and math.isfinite(_score(c))
+                       and (levels_differ or c.effect != AMPLITUDE_SOFTENING.name)), key=_score)
     if not eligible:
         return None, 0.0, None
     best = eligible[0]

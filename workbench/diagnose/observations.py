@@ -5,8 +5,11 @@ factor). For each condition ``c`` and measured mode ``i``: the mean frequency an
 the mean damping ratio. Their standard errors come from the scatter of the tests about a straight
 line in amplitude (a mean when there is one condition), divided by the square root of the
 condition's test count, with a relative floor (`RELATIVE_FLOOR`, 1e-4 for circle-fit frequencies:
-the extraction's bias at 40 dB is 3e-5; `DAMPING_FLOOR` for damping). Published means with a
-published std use ``std / sqrt(tests)``.
+the extraction's bias at 40 dB is 3e-5; `DAMPING_FLOOR` for damping). Their correlations across modes
+(a joint that scatters moves every mode at once) are kept, and the directions the tests never scattered
+along filled by a Ledoit-Wolf blend (`_shrunk`): a campaign has fewer tests than modes, and its sample
+covariance is singular. Published means
+with a published std use ``std / sqrt(tests)``.
 
 **Model discrepancy.** A nominal model never reproduces a real structure's means to the precision with
 which a campaign measures them: the as-built sections and materials are off by tenths of a percent, the
@@ -38,6 +41,7 @@ before its validation run (another seed); ``diagnosis.json`` states them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +49,8 @@ import numpy as np
 from workbench.extraction.records import MeasuredModes
 
 __all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "FORM_SD", "Discrepancy",
-           "Observations", "observations", "frequency_chi2", "frequency_chi2_many", "frequency_score", "damping_chi2",
+           "Observations", "observations", "level_contrast_chi2", "frequency_chi2", "frequency_chi2_many",
+           "frequency_score", "damping_chi2",
            "damping_variance", "chi2", "rms"]
 
 RELATIVE_FLOOR = 1e-4  # floor of the relative standard error of a mean frequency
@@ -81,6 +86,7 @@ class Observations:
     damping: np.ndarray | None
     damping_se: np.ndarray | None
     discrepancy: Discrepancy = Discrepancy(0.0, 0.0, 0.0)
+    scatter_dof: float = math.inf  # tests less the line's and the design's columns the scatter is measured with
 
     def joint_covariance(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Which (condition, mode) means of the modes in ``mask`` are present, and the covariance of their
@@ -98,10 +104,10 @@ class Observations:
 
 
 def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarray,
-                     designed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     designed: np.ndarray | None = None, regularise: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Covariance across modes of one test's relative deviation from the amplitude line (plus the designed
     factors' levels, ``designed``: `MeasuredModes.design`), and which modes have a degree of freedom left to
-    estimate it.
+    estimate it; ``regularise``: its empty directions filled (`_shrunk`), for the chi-squares of the frequencies.
     """
     design = np.stack([np.ones_like(amplitude), amplitude], axis=1) if levels.size > 1 else np.ones((amplitude.size, 1))
     if designed is not None:  # a test that differs by design from another does not scatter from it by chance
@@ -121,13 +127,15 @@ def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarr
     if usable.any():
         d = np.where(usable, deviation, 0.0)
         covariance = d.T @ d / np.sqrt(np.outer(np.maximum(dof, 1), np.maximum(dof, 1)))
-        covariance = _shrunk(covariance, d, float(np.mean(dof[usable])))
+        if regularise:
+            covariance = _shrunk(covariance, d, float(np.mean(dof[usable])))
     return covariance, usable
 
 
 def _shrunk(covariance: np.ndarray, deviation: np.ndarray, dof: float) -> np.ndarray:
-    """The test covariance with its correlations shrunk towards none (variances kept), by the Ledoit-Wolf
-    intensity of the correlation matrix (Schaefer & Strimmer 2005, target "D").
+    """The test covariance regularised: along each of its eigenvectors, the larger of its variance and that of
+    its blend ``(1 - w) C + w diag(C)`` with the Ledoit-Wolf intensity ``w`` of its correlation matrix (Schaefer
+    & Strimmer 2005, target "D").
 
     A campaign has fewer degrees of freedom (tests less design columns) than modes: the sample covariance is
     then singular, and a difference between two levels that falls outside the few directions the tests
@@ -138,24 +146,34 @@ def _shrunk(covariance: np.ndarray, deviation: np.ndarray, dof: float) -> np.nda
     """
     sd = np.sqrt(np.diag(covariance))
     live = sd > 0
-    if np.sum(live) < 2 or dof < 1:
+    n = deviation.shape[0]
+    if np.sum(live) < 2 or dof < 1 or n < 2:
         return covariance
-    rows = deviation[:, live] / sd[live] * np.sqrt(deviation.shape[0] / dof)  # sum of outer products / n = R
+    x = deviation[:, live] / sd[live]  # standardised: sum_k x_ki x_kj / dof is the correlation r_ij
+    products = x[:, :, None] * x[:, None, :]
     corr = covariance[np.ix_(live, live)] / np.outer(sd[live], sd[live])
+    # Var(r_ij) from the spread of the products, r_ij = (n / dof) mean_k w_kij (Schaefer & Strimmer's
+    # n / (n - 1)^3 where dof = n - 1)
+    spread = n / ((n - 1) * dof ** 2) * np.sum((products - products.mean(axis=0)) ** 2, axis=0)
     off = ~np.eye(corr.shape[0], dtype=bool)
-    spread = sum(float(np.sum(((np.outer(r, r) - corr) ** 2)[off])) for r in rows) / rows.shape[0] ** 2
     size = float(np.sum(corr[off] ** 2))
-    weight = 1.0 if size == 0.0 else min(1.0, spread / size)
+    weight = 1.0 if size == 0.0 else min(1.0, float(np.sum(spread[off])) / size)
+    block = covariance[np.ix_(live, live)]
+    blend = (1.0 - weight) * block + weight * np.diag(np.diag(block))
+    # along each of the sample's own directions, the larger of its variance and the blend's: the blend fills the
+    # directions the few tests never scattered along, but it also lowers the variance along the direction a
+    # scattering joint moves every mode, and a chance difference along it then reads as that joint softening
+    # (proving-ground seed 7, case 51)
+    values, vectors = np.linalg.eigh(block)
+    floor = np.einsum("ik,ij,jk->k", vectors, blend, vectors)
     shrunk = covariance.copy()
-    block = (1.0 - weight) * covariance[np.ix_(live, live)]
-    block[~off] = covariance[np.ix_(live, live)][~off]
-    shrunk[np.ix_(live, live)] = block
+    shrunk[np.ix_(live, live)] = (vectors * np.maximum(values, floor)) @ vectors.T
     return shrunk
 
 
 def _condition_means(values: np.ndarray, amplitude: np.ndarray, floor_rel: float, published_std: np.ndarray | None,
-                     tests_count: int | None, designed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray,
-                                                                                          np.ndarray, np.ndarray]:
+                     tests_count: int | None, designed: np.ndarray | None = None,
+                     regularise: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Condition means, their standard errors and the relative covariance of each condition's means.
 
     The tests' deviations from a straight line in amplitude (a mean with one condition) give the
@@ -171,7 +189,7 @@ def _condition_means(values: np.ndarray, amplitude: np.ndarray, floor_rel: float
     levels = np.unique(amplitude)
     means = np.array([np.nanmean(np.where((amplitude == a)[:, None], values, np.nan), axis=0) for a in levels])
     counts = np.array([np.sum(~np.isnan(values[amplitude == a]), axis=0) for a in levels])
-    covariance, usable = _test_covariance(values, amplitude, levels, designed)
+    covariance, usable = _test_covariance(values, amplitude, levels, designed, regularise)
     if published_std is not None:  # published means: their std, no correlation known
         rel = np.asarray(published_std, float) / np.nanmean(values, axis=0)
         covariance = np.where(np.diag(usable), covariance, np.diag(rel ** 2))
@@ -209,7 +227,7 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
                          "no degree of freedom to measure the test-to-test scatter, so a gap cannot be told from "
                          "chance; diagnose needs a repeated test (or std_hz in moments.csv)")
     levels, f, f_se, f_cov = _condition_means(measured.frequency_hz, amplitude, relative_floor,
-                                              measured.published_std_hz, measured.tests_count, designed)
+                                              measured.published_std_hz, measured.tests_count, designed, True)
     d = d_se = None
     if measured.damping_ratio is not None:
         _, d, d_se, _ = _condition_means(measured.damping_ratio, amplitude, damping_floor, None, None, designed)
@@ -219,7 +237,32 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
             scatter = float(np.sqrt(np.nanmean((np.asarray(measured.published_std_hz) / np.nanmean(
                 measured.frequency_hz, axis=0)) ** 2)))
         discrepancy = Discrepancy(max(MODEL_FLOOR, scatter))
-    return Observations(levels, f, f_se, f_cov, d, d_se, discrepancy)
+    columns = 1 + (levels.size > 1) + (designed.shape[1] if designed is not None else 0)
+    dof = math.inf if measured.published_std_hz is not None else float(max(n_tests - columns, 1))
+    return Observations(levels, f, f_se, f_cov, d, d_se, discrepancy, dof)
+
+
+def level_contrast_chi2(obs: Observations, predicted_hz: np.ndarray) -> tuple[float, int]:
+    """``(chi2, q)`` of the differences between excitation levels of the relative residuals (each level against
+    the lowest), on the modes every level holds, under the measurement covariance alone (the discrepancy is
+    shared by the levels and cancels); ``(0, 0)`` with one level.
+
+    Its covariance is estimated from the campaign's own scatter with `Observations.scatter_dof` degrees of
+    freedom, a handful: read against chi-square, a chance difference along the direction a scattering joint
+    moves the modes reads as softening (proving-ground seed 7, case 90: a joint's draws 2.8 sd apart between
+    the levels gave a drop of 25 where chance gives 8). `workbench.diagnose.decision` reads it against F.
+    """
+    if obs.amplitude.size < 2:
+        return 0.0, 0
+    r = predicted_hz / obs.frequency_hz - 1.0
+    keep = np.all(np.isfinite(r), axis=0)
+    q = int(np.sum(keep))
+    if q == 0:
+        return 0.0, 0
+    base, cov = obs.frequency_cov[0][np.ix_(keep, keep)], obs.frequency_cov[:, keep][:, :, keep]
+    contrast = np.concatenate([r[c, keep] - r[0, keep] for c in range(1, r.shape[0])])
+    blocks = [[base + (cov[c] if c == d else 0.0) for d in range(1, r.shape[0])] for c in range(1, r.shape[0])]
+    return float(contrast @ np.linalg.solve(np.block(blocks), contrast)), q * (r.shape[0] - 1)
 
 
 def frequency_chi2(obs: Observations, predicted_hz: np.ndarray, mask: np.ndarray | None = None,

@@ -13,8 +13,9 @@ CONTRACTS.md section 3 (the registry `workbench.rig.effects`), in stages:
   of their stiffness, mass or damping explains.
 - **Which** (`workbench.diagnose.candidates`, `workbench.diagnose.curves`): each candidate effect
   of the registry, at each place it can sit, with one parameter (a support's rotational or translational stiffness,
-  a mass, a shear coefficient, a stinger stiffness, an axial force, a joint's modulus factor, a
-  softening slope, a joint loss factor); added masses also choose their position along a member.
+  a mass, a shear coefficient, a stinger stiffness, an axial force carried by the frame or locked in
+  between a member's ends, a joint's modulus factor, a softening slope, a joint loss, hysteretic or
+  viscous); added masses also choose their position along a member.
 - **Held-out protocol** (`workbench.diagnose.fitting`): leave one mode out; candidates ranked by
   their total held-out chi-square.
 

@@ -17,7 +17,9 @@ from workbench.extraction.circlefit import MIN_BAND_POINTS, _check_frequency, _c
 from workbench.extraction.multimode import second_mode
 from workbench.tasks import Mapper, serial_mapper
 
-__all__ = ["find_mode_bands", "split_bands", "track_bands", "peak_start"]
+__all__ = ["find_mode_bands", "split_bands", "track_bands", "peak_start", "MOVE_LIMIT"]
+
+MOVE_LIMIT = 0.1  # a mode moves less than 10 % between tests (3 % is a strongly softening joint); farther is another
 
 
 def _half_power_edges(s: np.ndarray, k: int) -> tuple[float, float]:
@@ -73,7 +75,7 @@ def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_promine
     """
     f = _check_frequency(frequency_hz)
     h = _check_frfs(frfs, f.size)
-    s = np.mean(np.abs(h) / noise_level(h)[:, None], axis=0)
+    s = _summary(h)
     log_s = np.log10(np.maximum(s, np.finfo(float).tiny))
     peaks, props = find_peaks(log_s, prominence=min_prominence, height=np.log10(min_snr))
     keep = (f[peaks] >= f_min) & (f[peaks] <= f_max) & (f[peaks] > 0)
@@ -181,8 +183,8 @@ def peak_start(f: np.ndarray, h: np.ndarray) -> tuple[float, float]:
     return float(f[k]), float(np.clip(width / (2.0 * f[k]), 1e-4, 0.1))
 
 
-def track_bands(frequency_hz: list, frfs: list, bands) -> tuple[list[tuple[float, float]],
-                                                                 list[list[tuple[float, float]]]]:
+def track_bands(frequency_hz: list, frfs: list, bands: list[tuple[float, float]]) -> tuple[
+        list[tuple[float, float]], list[list[tuple[float, float]]]]:
     """Each mode's band in each test: moved onto the test's own peak, and one mode seen at two places merged.
 
     The bands found across every test sit on the peaks of their summary. A mode that moves between tests by more
@@ -192,8 +194,10 @@ def track_bands(frequency_hz: list, frfs: list, bands) -> tuple[list[tuple[float
     with its upper one; the test holds the mode there when the largest of its summary ``mean |H| / noise`` is
     inside the window and at least ``sqrt 2`` times the window's ends (a half-power peak). Then:
 
-    - two neighbouring bands that no test holds both of, each held by some test, are one mode: merged;
-    - each test's band is moved (its width kept) to centre on the test's own peak, within the window.
+    - neighbouring bands that no test holds two of, each held by some test and within `MOVE_LIMIT` of each
+      other, are one mode: merged;
+    - each test's band is moved (its width kept) to centre on the test's own peak, slid back inside its window
+      or its bands (whichever is wider) where it would leave them.
 
     A band listed twice (`split_bands`: two modes under one peak) is left as it is.
 
@@ -205,51 +209,60 @@ def track_bands(frequency_hz: list, frfs: list, bands) -> tuple[list[tuple[float
 
     Returns
     -------
-    The bands, merged (a merged band spans both), and per test its bands in the same order.
+    The bands, merged (a merged band spans its places), and per test its bands in the same order.
     """
     bands = [(float(lo), float(hi)) for lo, hi in bands]
     if not bands:
         return [], [[] for _ in frfs]
-    summaries = [np.mean(np.abs(np.atleast_2d(h)) / noise_level(np.atleast_2d(h))[:, None], axis=0) for h in frfs]
+    axes = [_check_frequency(f) for f in frequency_hz]
+    summaries = [_summary(_check_frfs(h, f.size)) for f, h in zip(axes, frfs)]
     twice = [bands.count(b) > 1 for b in bands]
-    centres = [_centre(frequency_hz, summaries, b) for b in bands]
+    centres = [_centre(axes, summaries, b) for b in bands]
     widths = [hi - lo for lo, hi in bands]
     windows = [(0.5 * (centres[k - 1] + centres[k]) if k > 0 else bands[k][0] - 0.5 * widths[k],
                 0.5 * (centres[k] + centres[k + 1]) if k + 1 < len(bands) else bands[k][1] + 0.5 * widths[k])
                for k in range(len(bands))]
-    peaks = np.array([[np.nan if twice[k] else _own_peak(np.asarray(f, float), s, windows[k])
-                       for k in range(len(bands))] for f, s in zip(frequency_hz, summaries)])
+    peaks = np.array([[np.nan if twice[k] else _own_peak(f, s, windows[k]) for k in range(len(bands))]
+                      for f, s in zip(axes, summaries)])
+    held = ~np.isnan(peaks)
     groups: list[list[int]] = [[0]]
     for k in range(1, len(bands)):
-        held = ~np.isnan(peaks[:, [groups[-1][-1], k]])
-        one_mode = (not twice[k] and not twice[k - 1] and held[:, 0].any() and held[:, 1].any()
-                    and not (held[:, 0] & held[:, 1]).any())
+        group = groups[-1]
+        in_group = held[:, group].any(axis=1)
+        one_mode = (not twice[k] and not twice[group[-1]] and in_group.any() and held[:, k].any()
+                    and not (in_group & held[:, k]).any() and centres[k] <= (1.0 + MOVE_LIMIT) * centres[group[0]])
         if one_mode:
-            groups[-1].append(k)
+            group.append(k)
         else:
             groups.append([k])
-    merged = [(bands[g[0]][0], bands[g[-1]][1]) if len(g) > 1 else bands[g[0]] for g in groups]
+    merged = [(bands[g[0]][0], bands[g[-1]][1]) for g in groups]
     per_test = []
     for row in peaks:
         own = []
-        for g in groups:
-            k = next((k for k in g if not np.isnan(row[k])), g[0])
-            lo, hi = bands[k]
-            if np.isnan(row[k]):
-                own.append((lo, hi))
+        for g, span in zip(groups, merged):
+            found = [k for k in g if not np.isnan(row[k])]
+            if not found:  # the test holds no peak of this mode: the whole span, the fit flags what it finds
+                own.append(span)
                 continue
-            shift = row[k] - centres[k]  # the band's width kept, its centre on the test's peak, never past
-            floor = min(windows[g[0]][0], bands[g[0]][0])  # its window or its group's bands, whichever is wider
-            ceiling = max(windows[g[-1]][1], bands[g[-1]][1])
-            own.append((max(lo + shift, floor), min(hi + shift, ceiling)))
+            k = found[0]
+            floor = min(windows[g[0]][0], span[0])
+            ceiling = max(windows[g[-1]][1], span[1])
+            lo, hi = bands[k][0] + row[k] - centres[k], bands[k][1] + row[k] - centres[k]
+            back = max(hi - ceiling, 0.0) - max(floor - lo, 0.0)  # slid back inside, not cut (its lines kept)
+            own.append((max(lo - back, floor), min(hi - back, ceiling)))
         per_test.append(own)
     return merged, per_test
 
 
-def _centre(frequency_hz: list, summaries: list, band: tuple[float, float]) -> float:
+def _summary(h: np.ndarray) -> np.ndarray:
+    """(n_freq,) ``mean_curves |H| / sigma``, ``sigma`` each curve's `noise_level`: the peaks in noise levels."""
+    return np.mean(np.abs(h) / noise_level(h)[:, None], axis=0)
+
+
+def _centre(axes: list[np.ndarray], summaries: list[np.ndarray], band: tuple[float, float]) -> float:
     """Hz: the peak of the tests' summed summary in ``band`` (the tests on one axis, else the first test's)."""
-    f = np.asarray(frequency_hz[0], float)
-    same = all(np.array_equal(np.asarray(g, float), f) for g in frequency_hz)
+    f = axes[0]
+    same = all(np.array_equal(g, f) for g in axes)
     total = np.sum(summaries, axis=0) if same else summaries[0]
     inside = (f >= band[0]) & (f <= band[1])
     if not inside.any():
@@ -262,8 +275,8 @@ def _own_peak(f: np.ndarray, s: np.ndarray, window: tuple[float, float]) -> floa
     inside = np.flatnonzero((f >= window[0]) & (f <= window[1]))
     if inside.size < 3:
         return float("nan")
-    values = s[inside]
+    values = np.where(np.isfinite(s[inside]), s[inside], -np.inf)
     k = int(np.argmax(values))
-    if k in (0, values.size - 1) or values[k] < np.sqrt(2.0) * max(values[0], values[-1]):
+    if k in (0, values.size - 1) or not values[k] >= np.sqrt(2.0) * max(values[0], values[-1]):
         return float("nan")
     return float(f[inside][k])

@@ -263,7 +263,7 @@ def _fit_test(shared: tuple, task: tuple) -> list[ModeEstimate]:
 
 def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, count: int | None = None,
                   mapper: Mapper | None = None) -> tuple[list[tuple[float, float]], dict[object, list[ModeEstimate]]]:
-    """Modes of every test of a campaign: bands found once across all tests and sensors.
+    """Modes of every test of a campaign: bands found across all tests and sensors, each followed per test.
 
     Parameters
     ----------
@@ -271,16 +271,19 @@ def extract_tests(frequency_hz: dict, frfs: dict, quantity: str, bands=None, cou
     frfs : test id -> (n_sensors, n_freq) complex FRFs in the unit of ``quantity``.
     bands : (f_lo, f_hi) Hz per mode, or None to find them (`find_mode_bands` on all the curves
         of all the tests when they share one frequency axis, else on the first test's curves; then
-        `split_bands`: a band that holds two modes in most tests is listed twice). A band listed
-        twice is fitted with two poles at once (`fit_modes`).
+        `split_bands`: a band that holds two modes in most tests is listed twice; then `track_bands`: each
+        test fits each mode in its own band, centred on its own peak, and a mode the tests hold at two
+        places is one mode). A band listed twice is fitted with two poles at once (`fit_modes`). Bands
+        given are used as they are, in every test.
     count : keep the ``count`` lowest modes found.
     mapper : runs the bands' votes (`split_bands`) and the tests' fits (`workbench.tasks.Mapper`); default, one
         after the other here.
 
     Returns
     -------
-    bands : the bands used, increasing; band k is mode k + 1 in every test (a band listed twice
-        gives its lower mode, then its upper one).
+    bands : the modes' bands, increasing (a band that `track_bands` merged spans its places; each test's
+        own band lies inside it, or inside its search window); band k is mode k + 1 in every test (a band
+        listed twice gives its lower mode, then its upper one).
     estimates : test id -> one `ModeEstimate` per band (its flags say where not to trust it).
     """
     tests = list(frfs)

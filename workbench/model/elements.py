@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["shear_parameter", "stiffness_local", "mass_local", "geometric_local", "rotation", "to_global"]
+__all__ = ["shear_parameter", "stiffness_local", "mass_local", "geometric_local", "string_local", "rotation",
+           "to_global"]
 
 _AXIAL = np.array([0, 3])
 _BENDING = np.array([1, 2, 4, 5])
@@ -122,8 +123,17 @@ def geometric_local(length: np.ndarray, axial_force: np.ndarray) -> np.ndarray:
 
 
 def string_local(length: np.ndarray, axial_force: np.ndarray) -> np.ndarray:
-    """Geometric stiffness of a straight bar (a string) of force ``N`` between two nodes, N/m, ``(e, 6, 6)``:
-    ``N / L [1, -1; -1, 1]`` on the transverse dofs, what a force along the chord does when the chord turns.
+    """Geometric stiffness of a straight bar (a string) between two nodes: what a force along its chord does
+    when the chord turns.
+
+    Parameters
+    ----------
+    length : (e,) chord lengths, m.
+    axial_force : (e,) forces, N, tension positive.
+
+    Returns
+    -------
+    (e, 6, 6) local matrices, N/m: ``N / L [1, -1; -1, 1]`` on the transverse dofs (v1, v2), zero elsewhere.
     """
     L = np.asarray(length, float)
     N = np.broadcast_to(np.asarray(axial_force, float), L.shape)

@@ -40,7 +40,9 @@ def article_frequencies(article: Article, count: int = FOOTPRINT_MODES, amplitud
 
 
 def _largest_shift(reference: np.ndarray, shifted: np.ndarray, f_max_hz: float = math.inf) -> float:
-    reference = reference[reference <= f_max_hz] if np.any(reference <= f_max_hz) else reference[:1]
+    reference = reference[reference <= f_max_hz]
+    if reference.size == 0:
+        raise ValueError(f"footprint: no mode below the band's top, {f_max_hz:g} Hz")
     nearest = shifted[np.argmin(np.abs(np.log(shifted[None, :] / reference[:, None])), axis=1)]
     return float(np.max(np.abs(nearest / reference - 1.0)))
 
@@ -62,7 +64,9 @@ def footprint(base: Article, mechanism: Mechanism, x: float, count: int = FOOTPR
             return 0.0
         added = np.einsum("ir,ir->r", modes.shapes, d.system.damping @ modes.shapes) / (2.0 * modes.omega)
         inside = modes.frequency_hz <= f_max_hz
-        return float(added[inside].max() if inside.any() else added[0])
+        if not inside.any():
+            raise ValueError(f"footprint: no mode below the band's top, {f_max_hz:g} Hz")
+        return float(added[inside].max())
     reference = base if mechanism.nominal is None else Article(mechanism.nominal(base.frame, x), shear=False,
                                                                 rotary_inertia=False)
     return _largest_shift(article_frequencies(reference, count), article_frequencies(article, count + 4), f_max_hz)

@@ -140,9 +140,18 @@ def _discrepancy_text(record: dict) -> str:
             f"{100 * d.get('form_sd', 0.0):.0f} % of the change it predicts")
 
 
+def _levels_text(gap: dict) -> str:
+    levels = gap.get("levels")
+    if not levels:
+        return ""
+    return (f", the levels' differences chi-square {levels['chi2']:.3g} on {levels['dof']} (p = "
+            f"{levels['p_value']:.2g} against F, the scatter measured with {levels['scatter_dof']:.0f} degrees of "
+            "freedom)")
+
+
 def _gaps_text(record: dict) -> str:
     gaps = record.get("gaps") or {}
-    parts = [f"{name}: chi-square {g['chi2']:.3g} against {g['threshold']:.3g} allowed"
+    parts = [f"{name}: chi-square {g['chi2']:.3g} against {g['threshold']:.3g} allowed{_levels_text(g)}"
              f"{_evidence_text(g.get('evidence'))} ({'a gap' if g['gap'] else 'within the errors'})"
              for name, g in gaps.items()]
     return "; ".join(parts) or "not tested"
