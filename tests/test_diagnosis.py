@@ -92,6 +92,22 @@ def test_fewer_tests_than_modes_do_not_read_a_chance_level_difference_as_softeni
     assert obs.scatter_dof == tests - 2 and np.mean(np.array(f_p) < 0.01) <= 0.02
 
 
+def test_the_levels_line_keeps_its_level_with_one_test_per_level():
+    # UNESP-BERT's design: six levels, one test each, the scatter measured about the line with 4 degrees of
+    # freedom; the line's slope is independent of that scatter, so its F test keeps its level under the null
+    rng = np.random.default_rng(9)
+    amplitude, modes = np.arange(1.0, 7.0), 4
+    p = []
+    for _ in range(300):
+        joints = rng.uniform(0.2, 2.0, (2, modes)) * 1e-3
+        f = 100.0 * (1 + rng.standard_normal((6, 2)) @ joints + 2e-5 * rng.standard_normal((6, modes)))
+        obs = observations(MeasuredModes(f, amplitude=amplitude))
+        chi2, q = level_contrast_chi2(obs, np.full_like(obs.frequency_hz, 100.0))
+        p.append(f_law.sf(chi2 / q, q, obs.scatter_dof))
+    assert obs.scatter_dof == 4 and q == modes
+    assert np.mean(np.array(p) < 0.01) <= 0.02 and np.mean(np.array(p) < 0.5) > 0.2  # not a test that never fires
+
+
 def test_global_joint_shift_scales_every_joint():
     frame = read_frame(TWO_BOLT)
     shifted = apply_effect(frame, Effect("joint_stiffness_shift", None, {"factor": 0.5}))

@@ -12,6 +12,13 @@ the proving ground, never tuned on it):
    ``GAP_LEVEL``); damping likewise, with the degrees of freedom of its two fitted parameters removed. The
    omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
+   With several excitation levels, the frequencies' chi-square is split into the line in amplitude through
+   the levels' residuals (`workbench.diagnose.observations.level_contrast_chi2`), whose covariance the
+   campaign estimates from a handful of tests and which is read against F with their degrees of freedom
+   (``levels``), and the rest, read against chi-square with the line's degrees of freedom removed; the
+   omnibus test rejects when either does (each at ``GAP_LEVEL``). The softening candidates' drops are read
+   against F too, and amplitude softening is named only where the levels differ (the line's F test or a
+   softening drop, Bonferroni over all the channel's candidates, below ``GAP_LEVEL``).
 2. **Explained.** The best candidate on that channel (least held-out score, leave one mode out)
    explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
    the held-out error by at least `MIN_SHRINKAGE`.
@@ -69,9 +76,11 @@ class Verdict:
 
 def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit,
                  ranking: list[CandidateFit] | None = None) -> dict[str, dict]:
-    """Each channel's gap tests (module docstring, 1): the omnibus chi-square, its degrees of freedom and
-    threshold, and the targeted test's best candidate (``evidence``: its in-sample chi-square drop and its
-    family-wise p-value); ``gap`` when either test rejects at `GAP_LEVEL`.
+    """Each channel's gap tests (module docstring, 1): the omnibus chi-square (for frequencies at several levels,
+    without the levels' line), its degrees of freedom and threshold, and the targeted test's best candidate
+    (``evidence``: its in-sample chi-square drop and its family-wise p-value); for frequencies at several
+    levels, ``levels``: the line's chi-square, its degrees of freedom, the scatter's, its F p-value, the best
+    softening drop's p-value and whether the levels differ (``gap``); ``gap`` when a test rejects at `GAP_LEVEL`.
     """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
@@ -88,10 +97,11 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
         omnibus = value > threshold
         out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "evidence": evidence,
                      "observations": n_f if name == "frequency" else n_d}
-        if name == "frequency" and q:  # the levels' differences, against the scatter measured with few tests
-            p_levels = float(f_law.sf(contrast / q, q, obs.scatter_dof))
-            softening = _evidence([c for c in ranking or [] if c.effect == AMPLITUDE_SOFTENING.name], chi2_f,
-                                  name, obs.scatter_dof)
+        if name == "frequency" and obs.amplitude.size > 1:  # the levels' line, its scatter from a few tests
+            p_levels = float(f_law.sf(contrast / q, q, obs.scatter_dof)) if q else 1.0
+            channel = [c for c in ranking or [] if c.channel == name]
+            softening = _evidence([c for c in channel if c.effect == AMPLITUDE_SOFTENING.name], chi2_f, name,
+                                  obs.scatter_dof, family=len(channel))
             out[name]["levels"] = {"chi2": float(contrast), "dof": q, "scatter_dof": obs.scatter_dof,
                                    "p_value": p_levels, "softening_p_value": softening["p_value"],
                                    "gap": bool(min(p_levels, softening["p_value"]) < GAP_LEVEL)}
@@ -102,14 +112,17 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
 
 
 def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str,
-              scatter_dof: float = math.inf) -> dict:
+              scatter_dof: float = math.inf, family: int | None = None) -> dict:
     """The targeted test of a channel: the candidate whose fit lowers the in-sample chi-square the most beyond
-    chance, each drop read as chi-square with the candidate's parameter count (Wilks), its p-value multiplied
-    by the number of candidates tried (Bonferroni, so that a search over many effects and places is not read
-    as a find). An omnibus test spreads its power over every direction the residual could take; this one
-    looks along the few the vocabulary names, so that a 1 % effect is seen where the omnibus sees chance.
+    chance, each drop read as chi-square with the candidate's parameter count (Wilks; a softening drop, which
+    the levels' differences make, as F with ``scatter_dof``), its p-value multiplied by the number of
+    candidates tried (``family``, default ``candidates``: Bonferroni, so that a search over many effects and
+    places is not read as a find). An omnibus test spreads its power over every direction the residual could
+    take; this one looks along the few the vocabulary names, so that a 1 % effect is seen where the omnibus
+    sees chance.
     """
-    best: dict = {"effect": None, "where": None, "chi2_drop": 0.0, "p_value": 1.0, "candidates": len(candidates)}
+    family = len(candidates) if family is None else family
+    best: dict = {"effect": None, "where": None, "chi2_drop": 0.0, "p_value": 1.0, "candidates": family}
     for c in candidates:
         in_sample = c.chi2 - c.chi2_frequency if channel == "damping" else c.chi2_frequency
         drop = baseline_chi2 - in_sample
@@ -120,10 +133,10 @@ def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str
             p_one = float(f_law.sf(drop / k, k, scatter_dof))  # differences, their scatter from a few tests: F
         else:
             p_one = float(chi2_law.sf(drop, k))
-        p = min(1.0, p_one * len(candidates))
+        p = min(1.0, p_one * family)
         if p < best["p_value"]:
             best = {"effect": c.effect, "where": c.where, "chi2_drop": float(drop), "p_value": p,
-                    "candidates": len(candidates)}
+                    "candidates": family}
     return best
 
 

@@ -6,9 +6,10 @@ the mean damping ratio. Their standard errors come from the scatter of the tests
 line in amplitude (a mean when there is one condition), divided by the square root of the
 condition's test count, with a relative floor (`RELATIVE_FLOOR`, 1e-4 for circle-fit frequencies:
 the extraction's bias at 40 dB is 3e-5; `DAMPING_FLOOR` for damping). Their correlations across modes
-(a joint that scatters moves every mode at once) are kept, and the directions the tests never scattered
-along filled by a Ledoit-Wolf blend (`_shrunk`): a campaign has fewer tests than modes, and its sample
-covariance is singular. Published means
+(a joint that scatters moves every mode at once) are kept, and the matrix regularised with its Ledoit-Wolf
+blend (`_shrunk`: the larger variance along each direction the tests sampled, the blend where they never did):
+a campaign has fewer tests than modes, and its sample covariance is singular. The frequencies' standard
+errors use it; the per-mode discrepancy uses the scatter as measured. Published means
 with a published std use ``std / sqrt(tests)``.
 
 **Model discrepancy.** A nominal model never reproduces a real structure's means to the precision with
@@ -86,7 +87,8 @@ class Observations:
     damping: np.ndarray | None
     damping_se: np.ndarray | None
     discrepancy: Discrepancy = Discrepancy(0.0, 0.0, 0.0)
-    scatter_dof: float = math.inf  # tests less the line's and the design's columns the scatter is measured with
+    scatter_dof: float = math.inf  # tests less the rank of the line and design the scatter is measured about
+    scattered: np.ndarray | None = None  # (n_modes,) the modes whose scatter was measured (None: every one)
 
     def joint_covariance(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Which (condition, mode) means of the modes in ``mask`` are present, and the covariance of their
@@ -103,15 +105,21 @@ class Observations:
         return present, cov
 
 
+def _design(amplitude: np.ndarray, levels: np.ndarray, designed: np.ndarray | None) -> np.ndarray:
+    """(n_tests, n_columns): the amplitude line (a mean with one level) and the designed factors' levels."""
+    design = np.stack([np.ones_like(amplitude), amplitude], axis=1) if levels.size > 1 else np.ones((amplitude.size, 1))
+    if designed is not None:  # a test that differs by design from another does not scatter from it by chance
+        design = np.hstack([design, designed])
+    return design
+
+
 def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarray,
                      designed: np.ndarray | None = None, regularise: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Covariance across modes of one test's relative deviation from the amplitude line (plus the designed
     factors' levels, ``designed``: `MeasuredModes.design`), and which modes have a degree of freedom left to
-    estimate it; ``regularise``: its empty directions filled (`_shrunk`), for the chi-squares of the frequencies.
+    estimate it; ``regularise``: regularised (`_shrunk`), for the chi-squares of the frequencies.
     """
-    design = np.stack([np.ones_like(amplitude), amplitude], axis=1) if levels.size > 1 else np.ones((amplitude.size, 1))
-    if designed is not None:  # a test that differs by design from another does not scatter from it by chance
-        design = np.hstack([design, designed])
+    design = _design(amplitude, levels, designed)
     deviation = np.zeros_like(values)
     dof = np.zeros(values.shape[1])
     for k in range(values.shape[1]):
@@ -133,9 +141,9 @@ def _test_covariance(values: np.ndarray, amplitude: np.ndarray, levels: np.ndarr
 
 
 def _shrunk(covariance: np.ndarray, deviation: np.ndarray, dof: float) -> np.ndarray:
-    """The test covariance regularised: along each of its eigenvectors, the larger of its variance and that of
-    its blend ``(1 - w) C + w diag(C)`` with the Ledoit-Wolf intensity ``w`` of its correlation matrix (Schaefer
-    & Strimmer 2005, target "D").
+    """The test covariance regularised with its blend ``B = (1 - w) C + w diag(C)``, ``w`` the Ledoit-Wolf
+    intensity of its correlation matrix (Schaefer & Strimmer 2005, target "D"): along each direction the tests
+    sampled, the larger of the two variances; in the directions they never sampled, ``B`` projected there.
 
     A campaign has fewer degrees of freedom (tests less design columns) than modes: the sample covariance is
     then singular, and a difference between two levels that falls outside the few directions the tests
@@ -165,9 +173,12 @@ def _shrunk(covariance: np.ndarray, deviation: np.ndarray, dof: float) -> np.nda
     # scattering joint moves every mode, and a chance difference along it then reads as that joint softening
     # (proving-ground seed 7, case 51)
     values, vectors = np.linalg.eigh(block)
-    floor = np.einsum("ik,ij,jk->k", vectors, blend, vectors)
+    sampled = values > 1e-10 * values[-1]
+    v, empty = vectors[:, sampled], vectors[:, ~sampled]
+    floor = np.einsum("ik,ij,jk->k", v, blend, v)
+    projector = empty @ empty.T  # the directions never sampled, whatever basis eigh gave them
     shrunk = covariance.copy()
-    shrunk[np.ix_(live, live)] = (vectors * np.maximum(values, floor)) @ vectors.T
+    shrunk[np.ix_(live, live)] = (v * np.maximum(values[sampled], floor)) @ v.T + projector @ blend @ projector
     return shrunk
 
 
@@ -237,32 +248,44 @@ def observations(measured: MeasuredModes, relative_floor: float = RELATIVE_FLOOR
             scatter = float(np.sqrt(np.nanmean((np.asarray(measured.published_std_hz) / np.nanmean(
                 measured.frequency_hz, axis=0)) ** 2)))
         discrepancy = Discrepancy(max(MODEL_FLOOR, scatter))
-    columns = 1 + (levels.size > 1) + (designed.shape[1] if designed is not None else 0)
-    dof = math.inf if measured.published_std_hz is not None else float(max(n_tests - columns, 1))
-    return Observations(levels, f, f_se, f_cov, d, d_se, discrepancy, dof)
+    rank = int(np.linalg.matrix_rank(_design(amplitude, levels, designed)))
+    dof = math.inf if measured.published_std_hz is not None else float(max(n_tests - rank, 1))
+    return Observations(levels, f, f_se, f_cov, d, d_se, discrepancy, dof, usable)
 
 
 def level_contrast_chi2(obs: Observations, predicted_hz: np.ndarray) -> tuple[float, int]:
-    """``(chi2, q)`` of the differences between excitation levels of the relative residuals (each level against
-    the lowest), on the modes every level holds, under the measurement covariance alone (the discrepancy is
-    shared by the levels and cancels); ``(0, 0)`` with one level.
+    """The chi-square of the line in amplitude through the relative residuals of the levels' means, and its
+    degrees of freedom.
 
-    Its covariance is estimated from the campaign's own scatter with `Observations.scatter_dof` degrees of
-    freedom, a handful: read against chi-square, a chance difference along the direction a scattering joint
-    moves the modes reads as softening (proving-ground seed 7, case 90: a joint's draws 2.8 sd apart between
-    the levels gave a drop of 25 where chance gives 8). `workbench.diagnose.decision` reads it against F.
+    The line's slope, mode by mode (two levels: their difference), under the measurement covariance alone (the
+    discrepancy is shared by the levels and cancels). The scatter is measured about that same line
+    (`_test_covariance`), so the slope is independent of it; deviations from the line at three levels or more
+    are not, and stay with the means' chi-square. Its covariance is estimated with `Observations.scatter_dof`
+    degrees of freedom, a handful: read against chi-square, a chance slope along the direction a scattering
+    joint moves the modes reads as softening (proving-ground seed 7, case 90: a joint's draws 2.8 sd apart
+    between the levels gave a drop of 25 where chance gives 8); `workbench.diagnose.decision` reads it against F.
+
+    Parameters
+    ----------
+    obs : the observations (conditions by excitation amplitude).
+    predicted_hz : (n_cond, n_modes) predicted means, Hz.
+
+    Returns
+    -------
+    ``(chi2, q)``, ``q`` the modes every level holds and whose scatter was measured; ``(0, 0)`` with one level.
     """
     if obs.amplitude.size < 2:
         return 0.0, 0
     r = predicted_hz / obs.frequency_hz - 1.0
-    keep = np.all(np.isfinite(r), axis=0)
+    keep = np.all(np.isfinite(r), axis=0) & (obs.scattered if obs.scattered is not None else True)
     q = int(np.sum(keep))
     if q == 0:
         return 0.0, 0
-    base, cov = obs.frequency_cov[0][np.ix_(keep, keep)], obs.frequency_cov[:, keep][:, :, keep]
-    contrast = np.concatenate([r[c, keep] - r[0, keep] for c in range(1, r.shape[0])])
-    blocks = [[base + (cov[c] if c == d else 0.0) for d in range(1, r.shape[0])] for c in range(1, r.shape[0])]
-    return float(contrast @ np.linalg.solve(np.block(blocks), contrast)), q * (r.shape[0] - 1)
+    lever = obs.amplitude - obs.amplitude.mean()
+    lever = lever / np.sum(lever ** 2)
+    slope = lever @ r[:, keep]
+    cov = np.einsum("c,cij->ij", lever ** 2, obs.frequency_cov[:, keep][:, :, keep])
+    return float(slope @ np.linalg.solve(cov, slope)), q
 
 
 def frequency_chi2(obs: Observations, predicted_hz: np.ndarray, mask: np.ndarray | None = None,

@@ -144,9 +144,10 @@ def _levels_text(gap: dict) -> str:
     levels = gap.get("levels")
     if not levels:
         return ""
-    return (f", the levels' differences chi-square {levels['chi2']:.3g} on {levels['dof']} (p = "
-            f"{levels['p_value']:.2g} against F, the scatter measured with {levels['scatter_dof']:.0f} degrees of "
-            "freedom)")
+    return (f" (the means; the levels' line in amplitude: chi-square {levels['chi2']:.3g} on {levels['dof']}, p = "
+            f"{levels['p_value']:.2g} against F with the scatter's {levels['scatter_dof']:.0f} degrees of freedom, "
+            f"softening's best drop p = {levels.get('softening_p_value', 1.0):.2g}: the levels "
+            f"{'differ' if levels.get('gap') else 'do not differ beyond chance'})")
 
 
 def _gaps_text(record: dict) -> str:
