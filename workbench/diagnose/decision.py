@@ -93,13 +93,13 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
             continue
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
         whole = chi2_f if name == "frequency" else chi2_d  # the candidates' chi-squares hold the levels' part
-        evidence = _evidence([c for c in ranking or [] if c.channel == name], whole, name, obs.scatter_dof)
+        channel = [c for c in ranking or [] if c.channel == name]
+        evidence = _evidence(channel, whole, name, obs.scatter_dof)
         omnibus = value > threshold
         out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "evidence": evidence,
                      "observations": n_f if name == "frequency" else n_d}
         if name == "frequency" and obs.amplitude.size > 1:  # the levels' line, its scatter from a few tests
             p_levels = float(f_law.sf(contrast / q, q, obs.scatter_dof)) if q else 1.0
-            channel = [c for c in ranking or [] if c.channel == name]
             softening = _evidence([c for c in channel if c.effect == AMPLITUDE_SOFTENING.name], chi2_f, name,
                                   obs.scatter_dof, family=len(channel))
             out[name]["levels"] = {"chi2": float(contrast), "dof": q, "scatter_dof": obs.scatter_dof,
