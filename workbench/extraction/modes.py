@@ -177,8 +177,8 @@ def _with_flag(fit: ModalFit, flag: str) -> ModalFit:
 def combine(fits) -> ModeEstimate:
     """Combine one mode's fits on several curves.
 
-    Weights ``w = points_used / (circle_error^2 + WEIGHT_FLOOR^2)``, normalised; flagged fits get
-    no weight unless every fit is flagged (then all are used and their flags carried). Frequency
+    Weights ``w = points_used / (circle_error^2 + WEIGHT_FLOOR^2)``, normalised; fits flagged for anything
+    but ``"close_mode"`` get no weight unless every fit is (then all are used and their flags carried). Frequency
     and damping are weighted means, with weighted standard deviations as scatter. The result's
     flags are those of the fits used, plus ``"close_mode"`` if any fit raised it and nothing else
     (two close modes are a property of the structure, not of a sensor; a fit that failed for
@@ -194,7 +194,9 @@ def combine(fits) -> ModeEstimate:
     fits = tuple(fits)
     if not fits:
         raise ValueError("fits: nothing to combine")
-    use = np.array([x.ok for x in fits])
+    # close_mode marks the structure (a whole row carries it), not a sensor: a close mode's clean fits are used
+    # alone, as any mode's are, not averaged with the sensors where it is weak or its circle poor
+    use = np.array([not set(x.flags) - {"close_mode"} for x in fits])
     if not use.any():
         use[:] = True
     w = np.array([x.points_used / (x.circle_error**2 + WEIGHT_FLOOR**2) for x in fits]) * use
