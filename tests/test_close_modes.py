@@ -176,6 +176,24 @@ def test_a_close_mode_weak_at_one_sensor_is_measured_on_the_others():
         assert modes[2].weights[0] == 0.0  # the node's fit is not averaged in
 
 
+def test_a_mode_under_a_line_wide_weak_at_one_sensor_is_measured_on_the_others():
+    """A 600 Hz mode at 0.02 % damping on a 0.6 Hz grid (0.4 lines across its half-power band: every fit
+    ``few_points``), four sensors, one at its node: the combined estimate is usable (no ``weak`` nor
+    ``poor_circle``), within 0.05 %, and the node's fit is not averaged in. Before, ``few_points`` counted a fit
+    flagged alike with ``weak``, every fit was averaged and the mode lost (proving-ground seed 9001, case 20)."""
+    shapes = np.array([[1e-3, 1.0], [1.0, 0.5], [0.6, -0.8], [-0.4, 0.7]])  # and a 450 Hz mode the node sees
+    fr, zeta, df = 600.0, 0.0002, 0.6
+    for seed in range(CHECK_SEEDS, CHECK_SEEDS + 4):
+        rng = np.random.default_rng(seed)
+        f = np.arange(0.5 * fr, 1.5 * fr, df) + 0.3 * df  # the peak between two lines
+        h = add_noise(modal_superposition(f, [fr, 450.0], [zeta, 0.01], shapes, "accelerance"), 35.0, rng)
+        row = ex.fit_modes(f, h, "accelerance", [(fr - 4 * df, fr + 4 * df)])[0]
+        assert all(x.flags == ("few_points",) for x in row[1:]), [x.flags for x in row]
+        mode = ex.combine(row)
+        assert not {"weak", "poor_circle"} & set(mode.flags), (seed, mode.flags)
+        assert mode.weights[0] < 0.01 and abs(mode.frequency_hz / fr - 1.0) < 5e-4, (seed, mode)
+
+
 @pytest.mark.slow
 def test_close_pairs_four_seeds_each():
     cases = [(s, z, CHECK_SEEDS + seed) for s in (0.02, 0.03, 0.04, 0.06) for z in (0.005, 0.01, 0.015)

@@ -39,6 +39,14 @@ from workbench.tasks import Mapper, serial_mapper
 
 __all__ = ["ModeEstimate", "find_mode_bands", "split_bands", "fit_modes", "combine", "extract_tests", "error_vs_snr"]
 
+# The tiers of fits `combine` uses, cleanest first: a fit may carry the flags of its tier. ``close_mode`` marks the
+# structure (a whole band's row carries it), not a sensor; ``few_points`` a coarse grid, for which a fit's intervals
+# widen already. Counted as flagged alike with ``weak`` and ``poor_circle``, they made every fit of a close pair
+# or of a mode a line or two wide "flagged", and the sensors that see the mode were averaged with those that do
+# not, and the mode lost (proving-ground seed 9001, case 40: the two-bay's 210/216 Hz pair; case 20: a 28 Hz sway
+# mode at 0.25 % damping, 0.14 Hz wide on a 0.25 Hz grid, 600 noise levels high on two sensors).
+TOLERATED_FLAGS = (frozenset({"close_mode"}), frozenset({"close_mode", "few_points"}))
+
 
 @dataclass(frozen=True)
 class ModeEstimate:
@@ -177,8 +185,8 @@ def _with_flag(fit: ModalFit, flag: str) -> ModalFit:
 def combine(fits) -> ModeEstimate:
     """Combine one mode's fits on several curves.
 
-    Weights ``w = points_used / (circle_error^2 + WEIGHT_FLOOR^2)``, normalised; fits flagged for anything
-    but ``"close_mode"`` get no weight unless every fit is (then all are used and their flags carried). Frequency
+    Weights ``w = points_used / (circle_error^2 + WEIGHT_FLOOR^2)``, normalised, over the fits of the cleanest
+    tier of `TOLERATED_FLAGS` any fit reaches (when none does, every fit, its flags carried). Frequency
     and damping are weighted means, with weighted standard deviations as scatter. The result's
     flags are those of the fits used, plus ``"close_mode"`` if any fit raised it and nothing else
     (two close modes are a property of the structure, not of a sensor; a fit that failed for
@@ -194,10 +202,12 @@ def combine(fits) -> ModeEstimate:
     fits = tuple(fits)
     if not fits:
         raise ValueError("fits: nothing to combine")
-    # close_mode marks the structure (a whole row carries it), not a sensor: a close mode's clean fits are used
-    # alone, as any mode's are, not averaged with the sensors where it is weak or its circle poor
-    use = np.array([not set(x.flags) - {"close_mode"} for x in fits])
-    if not use.any():
+    use = np.zeros(len(fits), bool)
+    for tolerated in TOLERATED_FLAGS:  # the cleanest tier any fit reaches; every fit if none does
+        use = np.array([not set(x.flags) - tolerated for x in fits])
+        if use.any():
+            break
+    else:
         use[:] = True
     w = np.array([x.points_used / (x.circle_error**2 + WEIGHT_FLOOR**2) for x in fits]) * use
     w = np.where(np.isfinite(w), w, 0.0)
