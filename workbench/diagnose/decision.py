@@ -21,7 +21,10 @@ the proving ground, never tuned on it):
    softening drop, Bonferroni over all the channel's candidates, below ``GAP_LEVEL``).
 2. **Explained.** The best candidate on that channel (least held-out score, leave one mode out)
    explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
-   the held-out error by at least `MIN_SHRINKAGE`.
+   the held-out RMS error at all (`MIN_SHRINKAGE` = 0). It used to have to shrink it by 10 %; but the RMS error
+   holds the as-built common shift that the chi-square marginalises (`Observations.joint_covariance`) and no
+   candidate removes, and a tie's force fitted within its chi-square shrank it by 7 % only (proving-ground
+   development seed 9001, case 17: 43 of 72 single effects named with 10 %, 45 with 0, no other verdict changed).
 3. **Confidence** (``verdict.confidence``): the pseudo-Bayesian-model-average weight of the named effect
    type, ``w_i ~ exp(-score_i / 2)`` over the channel's candidates and the baseline, the score being minus
    twice the leave-one-out log predictive density (held-out chi-square plus the log determinant of the
@@ -54,7 +57,7 @@ __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "
 
 GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
 EXPLAINED_LEVEL = 0.01  # a candidate's held-out chi-square within its 99 % quantile: explained
-MIN_SHRINKAGE = 0.1  # and its held-out RMS error shrinks by at least this much (a sanity check: the chi-square decides)
+MIN_SHRINKAGE = 0.0  # and its held-out RMS error shrinks by more than this (at all: the chi-square decides)
 NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
 PAIR_EVIDENCE = 6.0  # each effect of a pair lowers the in-sample chi-square by this ("strong" on the BIC scale)
 DAMPING_PARAMETERS = 2  # the damping baseline's level and trend
@@ -184,7 +187,7 @@ def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effe
 
 def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
     limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
-    return bool(_heldout(fit) <= limit and _shrinkage(fit, baseline) >= MIN_SHRINKAGE)
+    return bool(_heldout(fit) <= limit and _shrinkage(fit, baseline) > MIN_SHRINKAGE)
 
 
 def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = None) -> dict:
@@ -198,7 +201,7 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
     limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
-        if (pair.heldout_chi2_frequency <= limit and _pair_shrinkage(pair, baseline) >= MIN_SHRINKAGE
+        if (pair.heldout_chi2_frequency <= limit and _pair_shrinkage(pair, baseline) > MIN_SHRINKAGE
                 and evidence >= PAIR_EVIDENCE):
             w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
                          + [baseline.heldout_chi2_frequency])
