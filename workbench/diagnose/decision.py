@@ -2,8 +2,8 @@
 
 Every test below measures residuals against the measurement error *plus* the model-form error the campaign
 allows (`workbench.diagnose.observations.Discrepancy`), so that a model that is as good as a nominal model of
-a real structure can be is not said to miss. The levels are frozen constants (fixed before the validation on
-the proving ground, never tuned on it):
+a real structure can be is not said to miss. The levels are frozen constants (set on the proving ground's
+development mix, seed 9001, and fixed before each validation seed's run, never tuned on one):
 
 1. **A gap, channel by channel.** Frequencies have a gap when the baseline's chi-square exceeds its
    ``1 - GAP_LEVEL`` quantile (the omnibus test: chi-square law, one degree of freedom per mean), or when
@@ -23,7 +23,7 @@ the proving ground, never tuned on it):
    explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
    the held-out RMS error at all (`MIN_SHRINKAGE` = 0). It used to have to shrink it by 10 %; but the RMS error
    holds the as-built common shift that the chi-square marginalises (`Observations.joint_covariance`) and no
-   candidate removes, and a tie's force fitted within its chi-square shrank it by 7 % only (proving-ground
+   candidate removes, and a strut's force fitted within its chi-square shrank it by 7 % only (proving-ground
    development seed 9001, case 17: 43 of 72 single effects named with 10 %, 45 with 0, no other verdict changed).
 3. **Confidence** (``verdict.confidence``): the pseudo-Bayesian-model-average weight of the named effect
    type, ``w_i ~ exp(-score_i / 2)`` over the channel's candidates and the baseline, the score being minus

@@ -42,9 +42,10 @@ __all__ = ["ModeEstimate", "find_mode_bands", "split_bands", "fit_modes", "combi
 # The tiers of fits `combine` uses, cleanest first: a fit may carry the flags of its tier. ``close_mode`` marks the
 # structure (a whole band's row carries it), not a sensor; ``few_points`` a coarse grid, for which a fit's intervals
 # widen already. Counted as flagged alike with ``weak`` and ``poor_circle``, they made every fit of a close pair
-# or of a mode a line or two wide "flagged", and the sensors that see the mode were averaged with those that do
-# not, and the mode lost (proving-ground seed 9001, case 40: the two-bay's 210/216 Hz pair; case 20: a 28 Hz sway
-# mode at 0.25 % damping, 0.14 Hz wide on a 0.25 Hz grid, 600 noise levels high on two sensors).
+# or of a mode under a line wide "flagged": every fit was then used, the estimate carried the ``weak`` or
+# ``poor_circle`` of the sensors that do not see the mode, and the diagnosis left the mode out (proving-ground
+# seed 9001, case 40: the two-bay's 210/216 Hz pair; case 20: a 28 Hz sway mode at 0.25 % damping, 0.14 Hz wide
+# on a 0.25 Hz grid, 600 noise levels high on two sensors).
 TOLERATED_FLAGS = (frozenset({"close_mode"}), frozenset({"close_mode", "few_points"}))
 
 
@@ -57,7 +58,7 @@ class ModeEstimate:
     frequency_hz, damping_ratio : quality-weighted means over the curves used (Hz, ratio).
     frequency_scatter, damping_scatter : weighted standard deviations over those curves.
     curves_used : number of curves with a non-zero weight.
-    weights : (n_curves,) normalised weights, 0 for excluded (flagged) curves.
+    weights : (n_curves,) normalised weights, 0 for the curves outside the tier used (`TOLERATED_FLAGS`).
     flags : flags of the curves used, plus ``"close_mode"`` if a curve raised it alone.
     fits : the per-curve fits.
     frequency_ci95_hz : (low, high) 95 % interval of ``frequency_hz``, Hz (`combine`).

@@ -256,7 +256,7 @@ fitted on exact eigen-solutions. Every test measures residuals against the measu
 model-form error a nominal model of a real structure carries ({_discrepancy_text(record)}). Verdict rules,
 channel by channel (frequency, damping): <code>none</code> when no channel's chi-square exceeds its 99 %
 quantile; otherwise the best candidate on a channel with a gap, if its held-out chi-square is within its 99 %
-quantile, it shrinks the held-out error by 10 % or more and its effect carries more than half the weight of
+quantile, it shrinks the held-out RMS error at all and its effect carries more than half the weight of
 all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the gap; else
 <code>unexplained</code> with the best partial explanation. See <code>workbench/diagnose/decision.py</code>.</p>
 </main></body></html>
