@@ -185,9 +185,14 @@ def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effe
     return float(np.sum(w[:-1][[c.effect == effect for c in candidates]]))
 
 
-def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
+def _explained(heldout_chi2: float, shrinkage: float, gap: dict) -> bool:
+    """The explained test (module docstring, 2) of a held-out chi-square and shrinkage on a channel's ``gap``."""
     limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
-    return bool(_heldout(fit) <= limit and _shrinkage(fit, baseline) > MIN_SHRINKAGE)
+    return bool(heldout_chi2 <= limit and shrinkage > MIN_SHRINKAGE)
+
+
+def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
+    return _explained(_heldout(fit), _shrinkage(fit, baseline), gap)
 
 
 def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = None) -> dict:
@@ -198,11 +203,9 @@ def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = 
 def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: CandidateFit,
                   gap: dict) -> tuple[PairFit, float] | None:
     """The best pair that explains the frequency gap (module docstring), with its weight among singles and pairs."""
-    limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
-        if (pair.heldout_chi2_frequency <= limit and _pair_shrinkage(pair, baseline) > MIN_SHRINKAGE
-                and evidence >= PAIR_EVIDENCE):
+        if _explained(pair.heldout_chi2_frequency, _pair_shrinkage(pair, baseline), gap) and evidence >= PAIR_EVIDENCE:
             w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
                          + [baseline.heldout_chi2_frequency])
             return pair, float(w[pairs.index(pair)])

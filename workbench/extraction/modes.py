@@ -203,13 +203,8 @@ def combine(fits) -> ModeEstimate:
     fits = tuple(fits)
     if not fits:
         raise ValueError("fits: nothing to combine")
-    use = np.zeros(len(fits), bool)
-    for tolerated in TOLERATED_FLAGS:  # the cleanest tier any fit reaches; every fit if none does
-        use = np.array([not set(x.flags) - tolerated for x in fits])
-        if use.any():
-            break
-    else:
-        use[:] = True
+    tiers = (np.array([not set(x.flags) - tolerated for x in fits]) for tolerated in TOLERATED_FLAGS)
+    use = next((u for u in tiers if u.any()), np.ones(len(fits), bool))  # the cleanest tier any fit reaches
     w = np.array([x.points_used / (x.circle_error**2 + WEIGHT_FLOOR**2) for x in fits]) * use
     w = np.where(np.isfinite(w), w, 0.0)
     if w.sum() <= 0.0:
