@@ -137,11 +137,24 @@ def test_injected_effect_is_named_placed_and_sized(effect, name, value, toleranc
     result = diagnose(frame, _data(frame, effect))
     assert (result.verdict, result.where) == (effect.type, effect.where)
     best = result.ranking[0]
-    assert best.parameters[name] == pytest.approx(value, rel=tolerance)
+    assert best.parameters[name] == pytest.approx(value, rel=tolerance) and not best.at_bound
     assert result.shrinkage > 0.9
     # the contract's definition, on the ranking's own numbers
     baseline_error = result.baseline.heldout_freq_rms_rel_error
     assert result.shrinkage == pytest.approx(1 - best.heldout_freq_rms_rel_error / baseline_error)
+
+
+def test_a_joint_stiffer_than_its_range_is_flagged_at_the_bound_not_named():
+    # the joint 30 times stiffer than the file's, beyond the candidates' 0.1-10: its fit lands on 10, which
+    # is a bound, not an estimate; Frequencies.at_bound says so and the verdict does not name it
+    frame = _deterministic(ONE_BOLT)
+    result = diagnose(frame, _data(frame, Effect("joint_stiffness_shift", "A", {"factor": 30.0})))
+    joint = next(c for c in result.ranking if c.effect == "joint_stiffness_shift" and c.where == "A")
+    assert joint.at_bound and joint.parameters["factor"] == pytest.approx(10.0, rel=1e-2)
+    assert result.verdict == "unexplained" and result.confidence > 0.9
+    assert result.partial is not None and result.partial["at_bound"] and result.partial["where"] == "A"
+    assert not any(c.at_bound for c in result.ranking if c.effect == "joint_stiffness_shift" and c.where is None
+                   and 0.11 < c.parameters["factor"] < 9.0)
 
 
 @SLOW
@@ -373,6 +386,48 @@ def _frequency_fit(effect, where, held, rms):
     from workbench.diagnose.fitting import CandidateFit
 
     return CandidateFit(effect, where, {}, "frequency", held, held, held, held, 0.0, rms, rms, None, None, 1, held)
+
+
+def test_a_candidate_at_a_bound_of_its_range_is_never_named():
+    # a fit at the end of a parameter's range is no estimate (the data ask for more of the effect than the range
+    # holds): the best candidate otherwise explains the gap, but is only the partial explanation, flagged
+    from dataclasses import replace
+
+    from workbench.diagnose.combined import PairFit
+    from workbench.diagnose.decision import decide
+
+    f, obs = _flat_observations(6)
+    off = f * 1.01
+    base = _frequency_fit("baseline", None, 600.0, 0.01)
+    joint = _frequency_fit("joint_stiffness_shift", "B", 4.0, 1e-4)
+    assert decide(obs, off, base, [joint], {joint.key: off}).effect == "joint_stiffness_shift"
+    verdict = decide(obs, off, base, [replace(joint, at_bound=True)], {joint.key: off})
+    assert verdict.effect == "unexplained"
+    assert verdict.partial == {"effect": "joint_stiffness_shift", "where": "B", "shrinkage": pytest.approx(0.99),
+                               "at_bound": True}
+    # nor a pair with an effect at its bound
+    a, b = _frequency_fit("added_mass", "beam", 300.0, 0.011), _frequency_fit("support_compliance", "base_left",
+                                                                               250.0, 0.008)
+    pair = PairFit(a, b, ({"mass": 0.1}, {"rz": 1e4}), 3.0, 5.0, 1e-3, 1e-3, f)
+    assert decide(obs, off, base, [b, a], {a.key: off, b.key: off}, [pair]).effect == "added_mass"
+    assert decide(obs, off, base, [b, a], {a.key: off, b.key: off}, [replace(pair, at_bound=True)]).effect == (
+        "unexplained")
+
+
+def test_a_pair_names_softening_only_where_the_levels_differ():
+    # as a single effect, amplitude softening may be named in a pair only where the levels' differences are
+    # beyond chance; a right shear named with softening `also` on levels that did not differ (seed 10, case 99)
+    from workbench.diagnose.combined import PairFit
+    from workbench.diagnose.decision import _pair_verdict
+
+    f, _ = _flat_observations(6)
+    base = _frequency_fit("baseline", None, 600.0, 0.01)
+    a, b = _frequency_fit("shear_deformation", None, 300.0, 0.011), _frequency_fit("amplitude_softening", "A",
+                                                                                    250.0, 0.008)
+    pair = PairFit(a, b, ({"shear_coefficient": 0.8}, {"slope": 0.01}), 3.0, 5.0, 1e-3, 1e-3, f)
+    differ = {"observations": 12, "levels": {"gap": True}}
+    assert _pair_verdict([pair], [a, b], base, differ)[0] is pair
+    assert _pair_verdict([pair], [a, b], base, {**differ, "levels": {"gap": False}}) is None
 
 
 def test_two_effects_that_predict_alike_are_not_told_apart():

@@ -37,6 +37,7 @@ class PairFit:
     heldout_freq_rms_rel_error: float
     predicted_hz: np.ndarray
     heldout_logdet: float = 0.0  # as `CandidateFit.heldout_logdet`
+    at_bound: bool = False  # either effect's parameter at a bound of its range (`Frequencies.at_bound`)
 
     @property
     def heldout_score(self) -> float:
@@ -112,7 +113,8 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, s
         params = (_parameters(first, pair[0], u[0]), _parameters(second, pair[1], u[1]))
         held_chi2, held_logdet = frequency_score(obs, held, baseline_hz)
         out.append(PairFit(first, second, params, in_chi2, held_chi2, rms(in_hz / obs.frequency_hz - 1.0),
-                           rms(held / obs.frequency_hz - 1.0), in_hz, held_logdet))
+                           rms(held / obs.frequency_hz - 1.0), in_hz, held_logdet,
+                           any(m.at_bound(x) for m, x in zip(pair, u))))
     out.sort(key=lambda p: p.heldout_score if math.isfinite(p.heldout_chi2_frequency) else np.inf)
     return out
 

@@ -45,6 +45,7 @@ class Curve:
     frequency_hz : (n_grid, count) model frequencies, Hz, tracked to the baseline's modes.
     log : the spline runs in log(value).
     fixed : further parameters of the effect, the same on the whole grid.
+    nominal : the parameter's value without the effect (the grid's start), or None when not known.
     """
 
     effect: str
@@ -54,6 +55,7 @@ class Curve:
     frequency_hz: np.ndarray
     log: bool
     fixed: dict = field(default_factory=dict)
+    nominal: float | None = None
 
     def coordinate(self, value: float | np.ndarray) -> np.ndarray:
         """The spline's coordinate of parameter values: log(value) or value."""
@@ -234,7 +236,7 @@ def sweep(base: Baseline, kind: EffectKind, where: str | None, values: np.ndarra
     ok = ~np.isnan(out[:, 0])
     if ok.sum() < 4:
         return None
-    return Curve(kind.name, where, parameter, values[ok], out[ok], log, fixed)
+    return Curve(kind.name, where, parameter, values[ok], out[ok], log, fixed, float(values[start]))
 
 
 def _exact_sweep(solve: Callable[[float], tuple[sp.spmatrix, Modes]], values: np.ndarray, start: int, count: int,

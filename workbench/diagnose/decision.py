@@ -25,6 +25,16 @@ development mix, seed 9001, and fixed before each validation seed's run, never t
    holds the as-built common shift that the chi-square marginalises (`Observations.joint_covariance`) and no
    candidate removes, and a strut's force fitted within its chi-square shrank it by 7 % only (proving-ground
    development seed 9001, case 17: 43 of 72 single effects named with 10 %, 45 with 0, no other verdict changed).
+   The quantile is the 90 % one (it was 99 %). The discrepancy is set wide enough that a model as good as a
+   nominal model of a real structure can be is not said to miss, so the effect that is there predicts the
+   held-out modes well inside it, while a wrong name, a mechanism of another form that the candidate only
+   approximates, sits nearer the edge. On the development data (seed 9001 and the spent seed 10, read
+   together, levels 0.01 to 0.5 tried, frozen before validation seed 11), 0.1 with the bound rule below took
+   confident wrong names from 22 to 17 of 300 cases and out-of-vocabulary ``unexplained`` from 9 to 13 of 27,
+   for one single effect of 217 (124 to 123 named right).
+   A candidate whose parameter sits at a bound of its range (`workbench.diagnose.fitting.Frequencies.at_bound`:
+   a joint ten times stiffer, a member at its buckling load) is never named: the data ask for more than the
+   range holds, and the value is no estimate. It may be the partial explanation, flagged ``at_bound``.
 3. **Confidence** (``verdict.confidence``): the pseudo-Bayesian-model-average weight of the named effect
    type, ``w_i ~ exp(-score_i / 2)`` over the channel's candidates and the baseline, the score being minus
    twice the leave-one-out log predictive density (held-out chi-square plus the log determinant of the
@@ -33,7 +43,8 @@ development mix, seed 9001, and fixed before each validation seed's run, never t
    predict the held-out modes equally well are not told apart, and the diagnosis says so (``partial``).
 4. **Two effects** (``also``): when no single candidate explains a frequency gap, the best pair
    (`workbench.diagnose.combined`) that does, each of its effects lowering the in-sample chi-square by
-   `PAIR_EVIDENCE` or more; an explained damping gap adds ``joint_damping`` to a frequency verdict.
+   `PAIR_EVIDENCE` or more, neither at a bound, and amplitude softening in a pair only where the levels differ
+   (as for a single effect); an explained damping gap adds ``joint_damping`` to a frequency verdict.
 5. **Otherwise** ``unexplained``, with the best partial explanation (``partial``: the best candidate on a
    channel with a gap, when it shrinks the held-out error at all). ``none`` only when no channel has a gap.
 """
@@ -56,7 +67,7 @@ __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "
            "channel_gaps", "decide", "type_confidence"]
 
 GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
-EXPLAINED_LEVEL = 0.01  # a candidate's held-out chi-square within its 99 % quantile: explained
+EXPLAINED_LEVEL = 0.1  # a candidate's held-out chi-square within its 90 % quantile: explained (module docstring)
 MIN_SHRINKAGE = 0.0  # and its held-out RMS error shrinks by more than this (at all: the chi-square decides)
 NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
 PAIR_EVIDENCE = 6.0  # each effect of a pair lowers the in-sample chi-square by this ("strong" on the BIC scale)
@@ -202,10 +213,17 @@ def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = 
 
 def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: CandidateFit,
                   gap: dict) -> tuple[PairFit, float] | None:
-    """The best pair that explains the frequency gap (module docstring), with its weight among singles and pairs."""
+    """The best pair that explains the frequency gap (module docstring), with its weight among singles and pairs;
+    as for single effects (`_channel`), amplitude softening only where the levels differ beyond chance.
+    """
+    if not gap.get("levels", {}).get("gap", True):
+        softening = AMPLITUDE_SOFTENING.name
+        pairs = [p for p in pairs if softening not in (p.first.effect, p.second.effect)]
+        singles = [c for c in singles if c.effect != softening]
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
-        if _explained(pair.heldout_chi2_frequency, _pair_shrinkage(pair, baseline), gap) and evidence >= PAIR_EVIDENCE:
+        if (_explained(pair.heldout_chi2_frequency, _pair_shrinkage(pair, baseline), gap) and evidence >= PAIR_EVIDENCE
+                and not pair.at_bound):
             w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
                          + [baseline.heldout_chi2_frequency])
             return pair, float(w[pairs.index(pair)])
@@ -224,7 +242,7 @@ def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
         return None, 0.0, None
     best = eligible[0]
     confidence = type_confidence(eligible, baseline, best.effect)
-    if _explains(best, baseline, gap) and confidence > NAME_CONFIDENCE:
+    if _explains(best, baseline, gap) and confidence > NAME_CONFIDENCE and not best.at_bound:
         return best, confidence, best
     return None, confidence, best
 
@@ -277,7 +295,8 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
     """``unexplained`` with the best partial explanation: the best candidate of the channel with the larger gap.
 
     Its confidence: where that candidate fits but other effects predict as well, one minus its weight (how sure
-    no single effect can be named); else the probability that its held-out misfit is beyond chance.
+    no single effect can be named); where it fits at a bound of its range, its weight; else the probability
+    that its held-out misfit is beyond chance.
     """
     ranked = sorted(best.values(), key=lambda c: -gaps[c.channel]["chi2"] / gaps[c.channel]["threshold"])
     top = ranked[0] if ranked else None
@@ -286,10 +305,14 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
     if top is not None:
         shrink = _shrinkage(top, baseline)
         if shrink > 0.0:
-            partial = {"effect": top.effect, "where": top.where, "shrinkage": float(shrink)}
+            partial = {"effect": top.effect, "where": top.where, "shrinkage": float(shrink),
+                       **({"at_bound": True} if top.at_bound else {})}
         g = gaps[top.channel]
         confidence = float(chi2_law.cdf(_heldout(top), g["observations"]))
         if _explains(top, baseline, g):
             same = [c for c in ranking if c.channel == top.channel and math.isfinite(_score(c))]
-            confidence = 1.0 - type_confidence(same, baseline, top.effect)
+            weight = type_confidence(same, baseline, top.effect)
+            # at a bound, the effect that would explain needs more than its range: the surer it is the one, the
+            # surer that nothing within the ranges explains the gap
+            confidence = weight if top.at_bound else 1.0 - weight
     return Verdict(UNEXPLAINED, None, 0.0, confidence, None, partial=partial, gaps=gaps)

@@ -41,6 +41,7 @@ from workbench.rig.effects import JOINT_DAMPING
 __all__ = ["CandidateFit", "Frequencies", "fit_curve", "damping_fit", "evaluate"]
 
 SCAN_POINTS = 161  # parameter values scanned before Brent's method
+BOUND_TOLERANCE = 1e-3  # of a parameter's range: a fit this close to a range's end sits at that bound
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,7 @@ class CandidateFit:
     heldout_logdet: float = 0.0  # log det of the covariance widened by the form's error, over the plain one
     observations: int = 1  # means fitted (frequency and damping), for the parameters' charge
     form: str = ""  # which of the effect's forms at this place (its swept parameter and fixed ones)
+    at_bound: bool = False  # its in-sample parameter at an end of its range (`Frequencies.at_bound`)
 
     @property
     def key(self) -> tuple[str, str | None, str]:
@@ -118,6 +120,17 @@ class Frequencies:
         else:
             model_hz = np.broadcast_to(self.spline(u)[:, None, :], (u.size, self.obs.amplitude.size, self.base.count))
         return self.base.frequency(np.asarray(model_hz))
+
+    def at_bound(self, u: float) -> bool:
+        """Whether the coordinate ``u`` sits at an end of the range (within `BOUND_TOLERANCE` of it) that is
+        not the no-effect end: the data ask for more of the effect than the range holds (a joint 10 times
+        stiffer, a member at its buckling load), and the fitted value is a bound, not an estimate.
+        """
+        nominal = 0.0 if self.amplitude else (None if self.curve.nominal is None
+                                              else float(self.curve.coordinate(self.curve.nominal)))
+        tolerance = BOUND_TOLERANCE * (self.hi - self.lo)
+        return any(abs(u - end) <= tolerance and (nominal is None or abs(end - nominal) > tolerance)
+                   for end in (self.lo, self.hi))
 
     def fit(self, modes_mask: np.ndarray) -> tuple[float, np.ndarray]:
         """``(u, predicted means)`` fitted on the modes in ``modes_mask``."""
@@ -200,7 +213,7 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
              fit_frequency: Callable[[np.ndarray], tuple[float, np.ndarray]] | None,
              fit_damping: Callable[[np.ndarray], tuple[np.ndarray, dict]] | None,
              obs: Observations, baseline_hz: np.ndarray, p_count: int,
-             form: str = "") -> tuple[CandidateFit, np.ndarray]:
+             form: str = "", at_bound: Callable[[float], bool] | None = None) -> tuple[CandidateFit, np.ndarray]:
     """In-sample fit and leave-one-mode-out predictions of one candidate.
 
     Parameters
@@ -212,6 +225,7 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
     obs : the observations; baseline_hz : (n_cond, n_measured) the baseline's means, Hz.
     p_count : number of fitted parameters, for the BIC.
     form : which form of the effect at ``where`` (`CandidateFit.form`).
+    at_bound : `Frequencies.at_bound`, whether the in-sample coordinate sits at a bound.
 
     Returns
     -------
@@ -219,9 +233,11 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
     """
     everything = np.ones(obs.frequency_hz.shape[1], bool)
     params: dict = {}
+    bound = False
     if fit_frequency is not None:
         u, in_f = fit_frequency(everything)
         params = parameters_of(u)
+        bound = bool(at_bound(u)) if at_bound is not None else False
         held_f = _held_out(lambda mask: fit_frequency(mask)[1], obs.frequency_hz)
     else:
         in_f = held_f = baseline_hz
@@ -245,6 +261,6 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], di
     fit = CandidateFit(effect, where, params, channel, in_chi2, in_chi2_f, held_chi2_f + held_chi2_d, held_chi2_f,
                        held_chi2_d, rms(in_f / obs.frequency_hz - 1.0), rms(held_f / obs.frequency_hz - 1.0),
                        d_rms, held_d_rms, p_count, in_chi2 + p_count * math.log(max(n_obs, 2)), held_logdet, n_obs,
-                       form)
+                       form, bound)
     return fit, in_f
 

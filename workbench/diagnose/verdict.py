@@ -141,7 +141,8 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
     for curve in curves:
         model = Frequencies(base, obs, curve)
         fit, in_f = evaluate(curve.effect, curve.where, curve.parameters, EFFECTS[curve.effect].channel,
-                             model.fit, fit_base_damping, obs, baseline_hz, _parameter_count(curve), curve.form)
+                             model.fit, fit_base_damping, obs, baseline_hz, _parameter_count(curve), curve.form,
+                             model.at_bound)
         ranking.append(fit)
         predictions[fit.key] = in_f
         models[fit.key] = model
@@ -152,7 +153,8 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
                 continue
             model = Frequencies(base, obs, curve, amplitude_joint=True)
             fit, in_f = evaluate(AMPLITUDE_SOFTENING.name, curve.where, lambda u: {slope: float(u)},
-                                 AMPLITUDE_SOFTENING.channel, model.fit, fit_base_damping, obs, baseline_hz, 1)
+                                 AMPLITUDE_SOFTENING.channel, model.fit, fit_base_damping, obs, baseline_hz, 1,
+                                 at_bound=model.at_bound)
             ranking.append(fit)
             predictions[fit.key] = in_f
             models[fit.key] = model
@@ -239,6 +241,7 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
 def _ranking_entry(c: CandidateFit) -> dict:
     return {"effect": c.effect, "where": c.where, "parameters": c.parameters, "form": c.form,
             "freq_rms_rel_error": c.freq_rms_rel_error, "heldout_freq_rms_rel_error": c.heldout_freq_rms_rel_error,
+            "at_bound": c.at_bound,
             "damping_rms_error": c.damping_rms_error, "heldout_damping_rms_error": c.heldout_damping_rms_error,
             "chi2": c.chi2, "heldout_chi2": c.heldout_chi2, "heldout_score": c.heldout_score, "bic": c.bic,
             "parameter_count": c.parameter_count}

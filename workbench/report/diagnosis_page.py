@@ -196,8 +196,10 @@ def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]
                           + _share_text(top["heldout_freq_rms_rel_error"], base)))
         partial = v.get("partial")
         if partial:
+            bound = (", its parameter at a bound of its range: the data ask for more of it than the range holds"
+                     if partial.get("at_bound") else "")
             lines.append(("partial explanation", f"{partial['effect']} @ {partial.get('where')}, shrinkage "
-                          f"{100 * partial['shrinkage']:.1f} %"))
+                          f"{100 * partial['shrinkage']:.1f} %{bound}"))
     else:
         lines.append(("shrinkage", "nothing to shrink: no gap beyond the scatter"))
     lines.append(("gap tests", _gaps_text(record)))
