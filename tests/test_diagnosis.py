@@ -153,8 +153,31 @@ def test_a_joint_stiffer_than_its_range_is_flagged_at_the_bound_not_named():
     assert joint.at_bound and joint.parameters["factor"] == pytest.approx(10.0, rel=1e-2)
     assert result.verdict == "unexplained" and result.confidence > 0.9
     assert result.partial is not None and result.partial["at_bound"] and result.partial["where"] == "A"
-    assert not any(c.at_bound for c in result.ranking if c.effect == "joint_stiffness_shift" and c.where is None
-                   and 0.11 < c.parameters["factor"] < 9.0)
+
+
+def test_only_the_far_end_of_a_range_is_a_bound():
+    # a support's rotational spring runs from soft to the file's clamp (its no-effect end), a joint's modulus
+    # factor from 0.1 to 10 with 1 inside: the no-effect end is no bound, every other end is, the middle neither
+    from workbench.diagnose.baseline import baseline
+    from workbench.diagnose.candidates import _support_curves, joint_curves
+    from workbench.diagnose.fitting import Frequencies
+    from workbench.diagnose.observations import observations
+
+    frame = _deterministic(ONE_BOLT)
+    levels = np.tile([1.0, 5.0], 3)  # two excitation levels, for the softening's range
+    obs = observations(_data(frame, Effect("joint_stiffness_shift", "A", {"factor": 0.8}), amplitude=levels))
+    base = baseline(frame, obs)
+    support = next(c for c in _support_curves(base) if c is not None and c.parameter == "rz")
+    joint = next(c for c in joint_curves(base) if c is not None)
+    assert support.nominal == support.values[-1] and joint.nominal == pytest.approx(1.0)
+    for curve, bounds in ((support, (True, False)), (joint, (True, True))):
+        model = Frequencies(base, obs, curve)
+        middle = 0.5 * (model.lo + model.hi)
+        assert (model.at_bound(model.lo), model.at_bound(model.hi), model.at_bound(middle)) == (*bounds, False)
+        step = 2e-3 * (model.hi - model.lo)  # twice the tolerance inside: an estimate, not a bound
+        assert not model.at_bound(model.lo + step) and not model.at_bound(model.hi - step)
+    softening = Frequencies(base, obs, joint, amplitude_joint=True)  # nil at the lowest level: 0 is no bound
+    assert (softening.at_bound(0.0), softening.at_bound(softening.hi)) == (False, True)
 
 
 @SLOW
@@ -369,7 +392,8 @@ def test_a_damping_gap_alone_never_names_a_frequency_effect():
     base_f = fit("baseline", "frequency", 800.0, 0.0, 800.0, 0.0, 1e-3, 0.01)
     verdict = decide(obs, off, base_f, [weak], {("joint_stiffness_shift", "A", ""): off})
     assert verdict.effect == "unexplained"
-    assert verdict.partial == {"effect": "joint_stiffness_shift", "where": "A", "shrinkage": pytest.approx(0.2)}
+    assert verdict.partial == {"effect": "joint_stiffness_shift", "where": "A", "shrinkage": pytest.approx(0.2),
+                               "at_bound": False}
 
 
 def _flat_observations(modes):

@@ -37,7 +37,7 @@ class PairFit:
     heldout_freq_rms_rel_error: float
     predicted_hz: np.ndarray
     heldout_logdet: float = 0.0  # as `CandidateFit.heldout_logdet`
-    at_bound: bool = False  # either effect's parameter at a bound of its range (`Frequencies.at_bound`)
+    at_bound: bool = False  # either effect's parameter at a far end of its range (`Frequencies.at_bound`)
 
     @property
     def heldout_score(self) -> float:

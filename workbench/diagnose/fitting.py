@@ -66,7 +66,7 @@ class CandidateFit:
     heldout_logdet: float = 0.0  # log det of the covariance widened by the form's error, over the plain one
     observations: int = 1  # means fitted (frequency and damping), for the parameters' charge
     form: str = ""  # which of the effect's forms at this place (its swept parameter and fixed ones)
-    at_bound: bool = False  # its in-sample parameter at an end of its range (`Frequencies.at_bound`)
+    at_bound: bool = False  # its in-sample parameter at a far end of its range (`Frequencies.at_bound`)
 
     @property
     def key(self) -> tuple[str, str | None, str]:
@@ -116,7 +116,10 @@ class Frequencies:
     def predict_many(self, u: np.ndarray) -> np.ndarray:
         """(n_u, n_cond, n_measured) predicted means, Hz, at each of ``u`` (n_u,)."""
         if self.amplitude:
-            model_hz = self.spline(np.log(1.0 - u[:, None] * self.excess[None, :]))  # (n_u, n_cond, n_model)
+            # the range's end reaches the curve's lowest modulus to within rounding, which can fall just off
+            # the spline (NaN): held on the grid
+            gamma = np.maximum(1.0 - u[:, None] * self.excess[None, :], float(self.curve.values.min()))
+            model_hz = self.spline(np.log(gamma))  # (n_u, n_cond, n_model)
         else:
             model_hz = np.broadcast_to(self.spline(u)[:, None, :], (u.size, self.obs.amplitude.size, self.base.count))
         return self.base.frequency(np.asarray(model_hz))
@@ -124,7 +127,8 @@ class Frequencies:
     def at_bound(self, u: float) -> bool:
         """Whether the coordinate ``u`` sits at an end of the range (within `BOUND_TOLERANCE` of it) that is
         not the no-effect end: the data ask for more of the effect than the range holds (a joint 10 times
-        stiffer, a member at its buckling load), and the fitted value is a bound, not an estimate.
+        stiffer, a member at the last force its grid solved before buckling), and the fitted value is a bound,
+        not an estimate.
         """
         nominal = 0.0 if self.amplitude else (None if self.curve.nominal is None
                                               else float(self.curve.coordinate(self.curve.nominal)))

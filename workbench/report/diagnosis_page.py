@@ -261,7 +261,8 @@ channel by channel (frequency, damping): <code>none</code> when no channel's chi
 {100 * (1 - GAP_LEVEL):g} % quantile; otherwise the best candidate on a channel with a gap, if its held-out
 chi-square is within its {100 * (1 - EXPLAINED_LEVEL):g} % quantile, it shrinks the held-out RMS error at all,
 its parameter is not at a bound of its range and its effect carries more than half the weight of
-all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the gap; else
+all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the gap (neither at
+a bound, amplitude softening only where the levels differ); else
 <code>unexplained</code> with the best partial explanation. See <code>workbench/diagnose/decision.py</code>.</p>
 </main></body></html>
 """
