@@ -192,16 +192,15 @@ def _weights(scores: list[float]) -> np.ndarray:
     return w / np.sum(w)
 
 
-def _baseline_score(candidates: list[CandidateFit], baseline: CandidateFit) -> float:
-    """The baseline's `_score` on the channel of ``candidates``."""
-    damping = bool(candidates) and candidates[0].channel == "damping"
-    return baseline.heldout_chi2_damping if damping else baseline.heldout_chi2_frequency
-
-
-def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effect: str) -> float:
-    """Pseudo-BMA weight of ``effect`` among ``candidates`` (one channel) and the baseline (module docstring)."""
-    w = _weights([_score(c) for c in candidates] + [_baseline_score(candidates, baseline)])
-    return float(np.sum(w[:-1][[c.effect == effect for c in candidates]]))
+def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effect: str,
+                    at_bound_only: bool = False) -> float:
+    """Pseudo-BMA weight of ``effect`` among ``candidates`` (one channel) and the baseline (module docstring);
+    ``at_bound_only``: of its candidates at a bound of their range only.
+    """
+    w = _weights([_score(c) for c in candidates]
+                 + [baseline.heldout_chi2_damping if candidates and candidates[0].channel == "damping"
+                    else baseline.heldout_chi2_frequency])
+    return float(np.sum(w[:-1][[c.effect == effect and (c.at_bound or not at_bound_only) for c in candidates]]))
 
 
 def _explained(heldout_chi2: float, shrinkage: float, gap: dict) -> bool:
@@ -222,12 +221,10 @@ def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = 
 def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: CandidateFit,
                   gap: dict) -> tuple[PairFit, float] | None:
     """The best pair that explains the frequency gap (module docstring), with its weight among singles and pairs;
-    as for single effects (`_channel`), amplitude softening only where the levels differ beyond chance.
+    ``singles`` the channel's `_eligible` candidates; as for them, amplitude softening only where the levels
+    differ (`_allowed`).
     """
-    if not gap.get("levels", {}).get("gap", True):
-        softening = AMPLITUDE_SOFTENING.name
-        pairs = [p for p in pairs if softening not in (p.first.effect, p.second.effect)]
-        singles = [c for c in singles if c.effect != softening]
+    pairs = [p for p in pairs if _allowed(p.first.effect, gap) and _allowed(p.second.effect, gap)]
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
         if (_explained(pair.heldout_chi2_frequency, _pair_shrinkage(pair, baseline), gap) and evidence >= PAIR_EVIDENCE
@@ -238,13 +235,17 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
     return None
 
 
+def _allowed(effect: str, gap: dict) -> bool:
+    """Whether ``effect`` may be named on a channel with ``gap``: an effect of the levels' differences only where
+    they differ beyond chance (as a damping gap never licenses a frequency effect).
+    """
+    return effect != AMPLITUDE_SOFTENING.name or bool(gap.get("levels", {}).get("gap", True))
+
+
 def _eligible(channel: str, ranking: list[CandidateFit], gap: dict) -> list[CandidateFit]:
-    """The candidates that may be named on ``channel``, best score first."""
-    # an effect of the levels' differences only where they differ beyond chance (as a damping gap never
-    # licenses a frequency effect)
-    levels_differ = gap.get("levels", {}).get("gap", True)
+    """The candidates that may be named on ``channel``, best score first (`_allowed`, a finite score)."""
     return sorted((c for c in ranking if c.channel == channel and math.isfinite(_score(c))
-                   and (levels_differ or c.effect != AMPLITUDE_SOFTENING.name)), key=_score)
+                   and _allowed(c.effect, gap)), key=_score)
 
 
 def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
@@ -285,7 +286,7 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
         primary, confidence = named["frequency"]
         best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
     elif frequency_gap:
-        singles = [c for c in ranking if c.channel == "frequency"]
+        singles = _eligible("frequency", ranking, gaps["frequency"])
         chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None
         if chosen is None or chosen[1] <= NAME_CONFIDENCE:
             return _unexplained(best, baseline, gaps, ranking)
@@ -324,9 +325,8 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
         confidence = float(chi2_law.cdf(_heldout(top), g["observations"]))
         if _explains(top, baseline, g):
             same = _eligible(top.channel, ranking, g)
-            w = _weights([_score(c) for c in same] + [_baseline_score(same, baseline)])[:-1]
             if top.at_bound:  # the weight of that effect at its bounds: how sure nothing within the ranges explains
-                confidence = float(np.sum(w[[c.effect == top.effect and c.at_bound for c in same]]))
+                confidence = type_confidence(same, baseline, top.effect, at_bound_only=True)
             else:  # how sure no single effect can be named
-                confidence = 1.0 - float(np.sum(w[[c.effect == top.effect for c in same]]))
+                confidence = 1.0 - type_confidence(same, baseline, top.effect)
     return Verdict(UNEXPLAINED, None, 0.0, confidence, None, partial=partial, gaps=gaps)
