@@ -138,6 +138,7 @@ def test_injected_effect_is_named_placed_and_sized(effect, name, value, toleranc
     assert (result.verdict, result.where) == (effect.type, effect.where)
     best = result.ranking[0]
     assert best.parameters[name] == pytest.approx(value, rel=tolerance) and not best.at_bound
+    assert "+" not in best.form  # one form of the effect: a support's second dof is not chosen to fit noise
     assert result.shrinkage > 0.9
     # the contract's definition, on the ranking's own numbers
     baseline_error = result.baseline.heldout_freq_rms_rel_error
@@ -617,7 +618,7 @@ def test_a_pair_is_fitted_to_the_least_chi_square_of_a_fine_scan():
     from scipy.optimize import minimize
 
     from workbench.diagnose.baseline import baseline
-    from workbench.diagnose.combined import _PairGrid
+    from workbench.diagnose.combined import PairGrid
     from workbench.diagnose.curves import sweep
     from workbench.diagnose.fitting import Frequencies
     from workbench.diagnose.observations import frequency_chi2, frequency_chi2_many
@@ -631,7 +632,7 @@ def test_a_pair_is_fitted_to_the_least_chi_square_of_a_fine_scan():
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     support = sweep(base, SUPPORT_COMPLIANCE, "base_left", 4919.25 * np.logspace(-3, 0, 33), 32, True)
     joint = sweep(base, JOINT_STIFFNESS_SHIFT, "A", np.logspace(-1, 1, 33), 16, True)
-    grid = _PairGrid((Frequencies(base, obs, support), Frequencies(base, obs, joint)), obs, baseline_hz)
+    grid = PairGrid((Frequencies(base, obs, support), Frequencies(base, obs, joint)), obs, baseline_hz)
     everything = np.ones(obs.frequency_hz.shape[1], bool)
     u, predicted, chi2 = grid.fit(everything)
     assert chi2 == pytest.approx(frequency_chi2(obs, predicted), rel=1e-12)

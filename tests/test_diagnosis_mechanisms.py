@@ -1,5 +1,6 @@
 """The diagnosis's candidate forms against mechanisms of the proving ground (another discretisation, another
-code, nuisances on): a tie across a member and a dashpot across a joint, each named, placed and sized."""
+code, nuisances on): a tie across a member, a dashpot across a joint and a clamp whose compliance couples
+translation and rotation, each named, placed and sized."""
 
 from __future__ import annotations
 
@@ -33,3 +34,15 @@ def test_a_dashpot_across_a_joint_is_named_as_viscous_joint_damping():
     assert (result.verdict, result.where) == ("joint_damping", "B")
     damping = [c for c in result.ranking if c.effect == "joint_damping" and c.where == "B"]
     assert damping[0].form == "viscous"
+
+
+def test_a_clamp_that_gives_way_in_rotation_and_translation_is_a_two_dof_support():
+    # the proving ground's clamp: translational springs below the node and a rotational one, a 3x3 stiffness with
+    # translation-rotation coupling, loosened as a whole. One spring at a time fits it worse than the rotational
+    # and horizontal springs of that support fitted together, whose second parameter is charged in the score
+    result, _ = _diagnosed(CaseSpec(0, 1, "two_bolt", "support_compliance", "large", "coupled_support", "base_right"))
+    assert (result.verdict, result.where) == ("support_compliance", "base_right")
+    support = [c for c in result.ranking if c.effect == "support_compliance" and c.where == "base_right"]
+    assert support[0].form == "rz+ux" and set(support[0].parameters) == {"rz", "ux"}
+    rotation = next(c for c in support if c.form == "rz")
+    assert support[0].heldout_score < rotation.heldout_score - 6.0  # "strong" on the BIC scale, the charge paid

@@ -64,7 +64,8 @@ def _support_curves(base: Baseline) -> list[Curve | None]:
     """Each support's rotational spring and, where held, each translational one, softened from the file's.
 
     A real clamp gives way in translation as well as in rotation (a bolted foot slides and rocks on its
-    plate): each held dof is one form of the support's compliance. A fixed dof starts from a stiffness far
+    plate): each held dof is one form of the support's compliance, and two of them at once one more
+    (`workbench.diagnose.verdict`, by `workbench.diagnose.combined.form_pairs`). A fixed dof starts from a stiffness far
     above the member's (its ``EI / L`` in rotation, ``EI / L^3`` in translation, up to the axial ``EA / L``).
     """
     frame, _ = base.planar

@@ -19,7 +19,7 @@ import numpy as np
 from workbench.diagnose.fitting import CandidateFit, Frequencies
 from workbench.diagnose.observations import Observations, frequency_chi2_many, frequency_score, rms
 
-__all__ = ["PAIR_POOL", "PairFit", "pair_fits"]
+__all__ = ["PAIR_POOL", "PairFit", "PairGrid", "form_pairs", "pair_fits"]
 
 PAIR_POOL = 6  # pairs are formed among this many best-ranked frequency candidates
 
@@ -50,7 +50,7 @@ ZOOM = 9  # values per parameter of each zoomed scan around the best point so fa
 ZOOMS = 3  # zoomed scans: the last steps by 1/2048 of each parameter's range
 
 
-class _PairGrid:
+class PairGrid:
     """A pair's predictions on a grid of both parameters (scaled to [0, 1]), solved once for every mode mask.
 
     Leave-one-mode-out fits the pair once per mode; the predictions do not depend on the mask, only the
@@ -103,7 +103,7 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, s
     out = []
     for first, second in itertools.combinations(pool, 2):
         pair = (models[first.key], models[second.key])
-        grid = _PairGrid(pair, obs, baseline_hz)
+        grid = PairGrid(pair, obs, baseline_hz)
         u, in_hz, in_chi2 = grid.fit(everything)
         held = np.full_like(obs.frequency_hz, np.nan)
         for k in range(n_modes):
@@ -117,6 +117,18 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, s
                            any(m.at_bound(x) for m, x in zip(pair, u))))
     out.sort(key=lambda p: p.heldout_score if math.isfinite(p.heldout_chi2_frequency) else np.inf)
     return out
+
+
+def form_pairs(models: list[Frequencies], effect: str) -> list[tuple[Frequencies, Frequencies]]:
+    """Every two forms of ``effect`` at one place among ``models``: one effect with two parameters.
+
+    A clamp gives way in rotation and in translation at once (a foot plate that rocks and slides, a base whose
+    compliance sits below the node and couples the two); one spring at a time fits such a support only as well
+    as one of its dofs carries the change, and another effect's single form may then fit better. Two forms at one
+    place are added at first order, as a pair of effects is (module docstring).
+    """
+    chosen = [m for m in models if m.curve.effect == effect and not m.amplitude]
+    return [(a, b) for a, b in itertools.combinations(chosen, 2) if a.curve.where == b.curve.where]
 
 
 def _parameters(fit: CandidateFit, model: Frequencies, u: float) -> dict:

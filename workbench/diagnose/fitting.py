@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -213,18 +214,20 @@ def _held_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.n
     return held
 
 
-def evaluate(effect: str, where: str | None, parameters_of: Callable[[float], dict], channel: str,
-             fit_frequency: Callable[[np.ndarray], tuple[float, np.ndarray]] | None,
+def evaluate(effect: str, where: str | None, parameters_of: Callable[[Any], dict], channel: str,
+             fit_frequency: Callable[[np.ndarray], tuple[Any, np.ndarray]] | None,
              fit_damping: Callable[[np.ndarray], tuple[np.ndarray, dict]] | None,
              obs: Observations, baseline_hz: np.ndarray, p_count: int,
-             form: str = "", at_bound: Callable[[float], bool] | None = None) -> tuple[CandidateFit, np.ndarray]:
+             form: str = "", at_bound: Callable[[Any], bool] | None = None) -> tuple[CandidateFit, np.ndarray]:
     """In-sample fit and leave-one-mode-out predictions of one candidate.
 
     Parameters
     ----------
     effect, where, channel : the candidate (``channel``: the data it changes).
-    parameters_of : its parameters from the fitted frequency coordinate.
-    fit_frequency : `Frequencies.fit`, or None for a candidate that leaves the frequencies at ``baseline_hz``.
+    parameters_of : its parameters from the fitted frequency coordinate (a float, or an array of two for two
+        forms at one place).
+    fit_frequency : `Frequencies.fit` (or a `workbench.diagnose.combined.PairGrid`'s), or None for a candidate
+        that leaves the frequencies at ``baseline_hz``.
     fit_damping : `damping_fit` for a mode mask, or None when no damping was measured.
     obs : the observations; baseline_hz : (n_cond, n_measured) the baseline's means, Hz.
     p_count : number of fitted parameters, for the BIC.

@@ -15,7 +15,9 @@ CONTRACTS.md section 3 (the registry `workbench.rig.effects`), in stages:
   of the registry, at each place it can sit, with one parameter (a support's rotational or translational stiffness,
   a mass, a shear coefficient, a stinger stiffness, an axial force carried by the frame or locked in
   between a member's ends, a joint's modulus factor, a softening slope, a joint loss, hysteretic or
-  viscous); added masses also choose their position along a member.
+  viscous); added masses also choose their position along a member; a support also gives way in two of
+  its dofs at once (`workbench.diagnose.combined.form_pairs`: a clamp that rocks and slides), its second
+  parameter charged in the score.
 - **Held-out protocol** (`workbench.diagnose.fitting`): leave one mode out; candidates ranked by
   their total held-out chi-square.
 
@@ -41,7 +43,7 @@ from threadpoolctl import threadpool_limits
 
 from workbench.diagnose.baseline import Baseline, baseline
 from workbench.diagnose.candidates import frame_curves
-from workbench.diagnose.combined import PairFit, pair_fits
+from workbench.diagnose.combined import PairFit, PairGrid, form_pairs, pair_fits
 from workbench.diagnose.curves import Curve
 from workbench.diagnose.decision import decide
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
@@ -64,6 +66,7 @@ from workbench.rig.effects import (
     EFFECTS,
     JOINT_DAMPING,
     JOINT_STIFFNESS_SHIFT,
+    SUPPORT_COMPLIANCE,
     UNEXPLAINED,
 )
 
@@ -146,6 +149,10 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
         ranking.append(fit)
         predictions[fit.key] = in_f
         models[fit.key] = model
+    for a, b in form_pairs(list(models.values()), SUPPORT_COMPLIANCE.name):
+        fit, in_f = _two_forms(a, b, obs, baseline_hz, fit_base_damping)
+        ranking.append(fit)
+        predictions[fit.key] = in_f
     slope = AMPLITUDE_SOFTENING.fitted_parameter
     if obs.amplitude.size > 1:  # softening: a joint's stiffness curve read at gamma(a) = 1 - slope * a
         for curve in curves:
@@ -167,6 +174,19 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
                 predictions[fit.key] = baseline_hz
     ranking.sort(key=lambda c: (c.heldout_score, c.bic))
     return ranking, predictions, models
+
+
+def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: np.ndarray,
+               fit_base_damping: DampingFit | None) -> tuple[CandidateFit, np.ndarray]:
+    """One effect in two of its forms at one place (`workbench.diagnose.combined.form_pairs`: a support that
+    gives way in two dofs), fitted on both parameters; scored as any candidate, its second parameter charged.
+    """
+    grid = PairGrid((a, b), obs, baseline_hz)
+    return evaluate(a.curve.effect, a.curve.where,
+                    lambda u: {**a.curve.parameters(float(u[0])), **b.curve.parameters(float(u[1]))},
+                    EFFECTS[a.curve.effect].channel, lambda mask: grid.fit(mask)[:2], fit_base_damping, obs,
+                    baseline_hz, 2, f"{a.curve.form}+{b.curve.form}",
+                    lambda u: a.at_bound(float(u[0])) or b.at_bound(float(u[1])))
 
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
