@@ -500,6 +500,33 @@ def test_a_pair_that_explains_is_named_with_its_own_shrinkage():
     assert decide(obs, off, base, [b, a], {a.key: off, b.key: off}, [weak]).effect == "unexplained"
 
 
+def test_a_pair_holding_an_added_mass_is_charged_for_its_place_as_the_mass_alone_is():
+    # a single added mass pays ln N for each of its place and position, chosen on every mode; a pair holding it
+    # pays the same, else a mass rides along any effect as a free `also`. Here the pair predicts the held-out
+    # modes a little better than the support alone (5.0 against 7.0), not by the mass's charge (2 ln 6 = 3.6)
+    from dataclasses import replace
+
+    from workbench.diagnose.combined import PairFit
+    from workbench.diagnose.decision import decide
+
+    f, obs = _flat_observations(6)
+    fit = _frequency_fit
+    off = f * 1.01
+    base = fit("baseline", None, 600.0, 0.01)
+    mass = replace(fit("added_mass", "beam", 300.0, 0.011), parameter_count=3, observations=6)
+    support = fit("support_compliance", "base_left", 7.0, 0.011)  # explains, but does not shrink the RMS error
+    pair = PairFit(support, mass, ({"rz": 1e4}, {"mass": 0.1}), 0.5, 5.0, 1e-3, 1e-3, f)  # each adds 6.5 in sample
+    assert pair.heldout_score == pytest.approx(5.0 + 2 * np.log(6))
+    verdict = decide(obs, off, base, [support, mass], {mass.key: off, support.key: off}, [pair])
+    assert verdict.effect == "unexplained"
+    # the same pair with a one-parameter second effect is not charged, and is named
+    joint = replace(mass, effect="joint_stiffness_shift", where="A", parameter_count=1)
+    free = PairFit(support, joint, ({"rz": 1e4}, {"factor": 0.9}), 0.5, 5.0, 1e-3, 1e-3, f)
+    named = decide(obs, off, base, [support, joint], {joint.key: off, support.key: off}, [free])
+    assert (named.effect, [a["effect"] for a in named.also]) == ("support_compliance", ["joint_stiffness_shift"])
+    assert named.confidence == pytest.approx(1 / (1 + np.exp(-0.5 * (7.0 - 5.0))), rel=1e-3)
+
+
 def test_the_scatter_a_design_puts_between_tests_is_not_read_as_chance():
     # two tightening levels move every mode by about 1 % by design; about the design the tests scatter by
     # 0.05 %: the per-mode allowance is the floor, not the designed spread, and the means' errors follow

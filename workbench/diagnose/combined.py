@@ -41,8 +41,10 @@ class PairFit:
 
     @property
     def heldout_score(self) -> float:
-        """As `CandidateFit.heldout_score` (two parameters, neither chosen beyond the leave-one-out refit)."""
-        return self.heldout_chi2_frequency + self.heldout_logdet
+        """As `CandidateFit.heldout_score`: the two fitted parameters are refitted by leave-one-mode-out, but what
+        each effect chose on every mode (an added mass's place and position) is charged as for the single.
+        """
+        return self.heldout_chi2_frequency + self.heldout_logdet + self.first.extra_charge + self.second.extra_charge
 
 
 GRID = 33  # coarse values of each parameter scanned together, before the zoom
