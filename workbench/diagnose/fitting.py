@@ -79,14 +79,16 @@ class CandidateFit:
     @property
     def heldout_score(self) -> float:
         """Minus twice the held-out log predictive density, up to a constant (chi-square plus log det), plus
-        ``ln N`` for each parameter beyond the one every candidate has: chosen on every mode, the refit of
-        leave-one-mode-out does not charge them.
+        ``ln N`` for each parameter beyond the one every candidate has (`extra_charge`).
         """
         return self.heldout_chi2 + self.heldout_logdet + self.extra_charge
 
     @property
     def extra_charge(self) -> float:
-        """``ln N`` per parameter beyond the first (`heldout_score`)."""
+        """``ln N`` per parameter beyond the first (`heldout_score`): an added mass's place and position, and
+        a two-form support's second stiffness, which leave-one-out refits but which is charged as a prior against
+        the richer form (`workbench.diagnose.combined.form_pairs`).
+        """
         return max(self.parameter_count - 1, 0) * math.log(max(self.observations, 2))
 
 

@@ -78,7 +78,8 @@ def _figures(d: Diagnosis) -> list[str]:
     ranked = d.ranking[:12][::-1]
     if ranked:
         fig, ax = plt.subplots(figsize=(9, 0.3 * len(ranked) + 1.2))
-        labels = [f"{c.effect} @ {c.where}" if c.where else c.effect for c in ranked]
+        labels = [(f"{c.effect} @ {c.where}" if c.where else c.effect) + (f" ({c.form})" if c.form else "")
+                  for c in ranked]
         held = [np.nan if h is None else h for h in (c.heldout_freq_rms_rel_error if c.channel == "frequency"
                                                      else c.heldout_damping_rms_error for c in ranked)]
         ax.barh(labels, held, color=["tab:green" if c.channel == "frequency" else "tab:orange" for c in ranked])
@@ -254,7 +255,8 @@ and shrinkage in %; every table is also a CSV file beside this page (linked belo
 <h2>Localisation</h2>{loc}
 <h2>Candidate effects, all {len(record['ranking'])}, best first</h2>{rank}
 <h2>Protocol</h2><p>{html.escape(record['protocol'])}. Each candidate is the nominal frame changed by one effect
-of the vocabulary (CONTRACTS.md section 3) with one parameter (two for a mass on a member: its position),
+of the vocabulary (CONTRACTS.md section 3) with one parameter (a mass on a member also its position; a
+support giving way in two dofs, two stiffnesses),
 fitted on exact eigen-solutions. Every test measures residuals against the measurement error plus the
 model-form error a nominal model of a real structure carries ({_discrepancy_text(record)}). Verdict rules,
 channel by channel (frequency, damping): <code>none</code> when no channel's chi-square exceeds its
