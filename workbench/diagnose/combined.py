@@ -73,6 +73,10 @@ class PairGrid:
         p2 = self.b.predict_many(self.lo[1] + np.clip(x2, 0.0, 1.0) * self.span[1])
         return (p1[:, None] + p2[None, :] - self.baseline_hz).reshape(-1, *self.baseline_hz.shape)
 
+    def at_bound(self, u: np.ndarray) -> bool:
+        """Whether either parameter of ``u`` (unscaled) sits at a far end of its range (`Frequencies.at_bound`)."""
+        return self.a.at_bound(float(u[0])) or self.b.at_bound(float(u[1]))
+
     def fit(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """``(u, prediction, chi2 on mask)`` of the pair fitted on the modes in ``mask``: the coarse grid's
         best point, then `ZOOMS` grids, each over the previous grid's cells around its best point.
@@ -120,7 +124,7 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, s
         held_chi2, held_logdet = frequency_score(obs, held, baseline_hz)
         out.append(PairFit(first, second, params, in_chi2, held_chi2, rms(in_hz / obs.frequency_hz - 1.0),
                            rms(held / obs.frequency_hz - 1.0), in_hz, held_logdet,
-                           any(m.at_bound(x) for m, x in zip(pair, u))))
+                           grid.at_bound(u)))
     out.sort(key=lambda p: p.heldout_score if math.isfinite(p.heldout_chi2_frequency) else np.inf)
     return out
 

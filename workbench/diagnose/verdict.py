@@ -185,8 +185,7 @@ def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: n
     return evaluate(a.curve.effect, a.curve.where,
                     lambda u: {**a.curve.parameters(float(u[0])), **b.curve.parameters(float(u[1]))},
                     EFFECTS[a.curve.effect].channel, lambda mask: grid.fit(mask)[:2], fit_base_damping, obs,
-                    baseline_hz, 2, f"{a.curve.form}+{b.curve.form}",
-                    lambda u: a.at_bound(float(u[0])) or b.at_bound(float(u[1])))
+                    baseline_hz, 2, f"{a.curve.form}+{b.curve.form}", grid.at_bound)
 
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
