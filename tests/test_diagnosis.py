@@ -352,6 +352,30 @@ def test_validation_reports_progress_and_writes_its_files(monkeypatch, tmp_path)
     assert "Wilson" in validation_html(record) and "single effect" in validation_text(record)
 
 
+def test_a_faint_case_counts_in_no_rate_but_confident_wrong():
+    from workbench.workflow.proving_validation import ProvingResult, score
+
+    def case(n, category, level, reached, verdict, right, wrong=False):
+        truth = {"single": "axial_prestress", "outside": "outside_vocabulary", "none": "none"}[category]
+        return ProvingResult(n, n, "two_bolt", category, truth, None, level, None, None, None, verdict, None, (),
+                             None, 0.9, 0.0, right, wrong, None, 1.0, {}, reached)
+
+    results = [case(0, "single", "medium", "faint", "none", False),  # a tie its strength capped at 0.06 %
+               case(1, "single", "medium", "medium", "axial_prestress", True),
+               case(2, "single", "small", "medium", "none", False),  # asked small, reached 0.8 %
+               case(3, "outside", "small", "faint", "joint_damping", False, wrong=True),
+               case(4, "outside", "large", "large", "unexplained", True),
+               case(5, "none", "", "", "none", True)]
+    s = score(results)
+    assert (s["single_accuracy"]["hits"], s["single_accuracy"]["n"]) == (1, 2)
+    assert s["single_accuracy_by_level"]["medium"]["n"] == 2 and s["single_accuracy_by_level"]["small"]["n"] == 0
+    assert s["single_accuracy_by_requested_level"]["medium"]["n"] == 2  # every single case, faint or not
+    assert s["single_accuracy_by_requested_level"]["small"]["n"] == 1
+    assert (s["outside_unexplained"]["hits"], s["outside_unexplained"]["n"]) == (1, 1)
+    assert (s["faint_none"]["hits"], s["faint_none"]["n"]) == (1, 2)
+    assert s["confident_wrong"]["hits"] == 1 and s["confident_wrong"]["n"] == 6  # a faint wrong name still counts
+
+
 def test_wilson_interval_matches_its_closed_form():
     from workbench.workflow.proving_validation import wilson
 

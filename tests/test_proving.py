@@ -33,7 +33,18 @@ from workbench.model.frame_file import parse_frame
 from workbench.proving.article import Article, Dashpot, Softening
 from workbench.proving.beams import BeamSet, assemble, beam_local, beam_matrices, damped_modes, frf, solve_modes
 from workbench.proving.campaigns import CampaignSettings, simulate_campaign
-from workbench.proving.cases import KINDS, CaseSpec, case_campaign, case_mix, design_of, expected_verdict
+from workbench.proving.cases import (
+    DAMPING_FOOTPRINTS,
+    FAINT,
+    FOOTPRINTS,
+    KINDS,
+    CaseSpec,
+    case_campaign,
+    case_mix,
+    design_of,
+    expected_verdict,
+    reached_level,
+)
 from workbench.proving.fem import discretise
 from workbench.proving.footprint import article_frequencies, calibrate, footprint
 from workbench.proving.frames import FRAME_NAMES, FRAMES_DIR, proving_frame
@@ -426,6 +437,29 @@ def test_the_footprint_counts_only_the_modes_the_band_holds(two_bolt):
     x, reached = calibrate(base, mech, 0.01, f_max_hz=f_max)
     assert abs(reached / 0.01 - 1) <= 0.05
     assert np.max(np.abs(article_frequencies(mech.build(base, x))[:3] / f0[:3] - 1.0)) == pytest.approx(reached)
+
+
+def test_a_case_is_read_at_the_rung_its_footprint_reached():
+    for ladder, channel in ((FOOTPRINTS, "frequency"), (DAMPING_FOOTPRINTS, "damping")):
+        for level, value in ladder.items():
+            assert reached_level(value, channel) == level
+            assert reached_level(value * 1.5, channel) == level  # nearer its own rung than the next (x 3.33, x 3)
+        assert reached_level(ladder["medium"] * 2.0, channel) == "large"  # sqrt(1/3 * 1) apart: past the middle
+        assert reached_level(0.49 * ladder["small"], channel) == FAINT
+        assert reached_level(0.51 * ladder["small"], channel) == "small"
+    assert reached_level(float("nan"), "frequency") == FAINT
+
+
+def test_a_wire_tie_capped_by_its_strength_is_faint_not_medium():
+    # the stocky portal's members are so stiff that a tie pulled to its strength moves the band's modes by
+    # about 0.1 %: the case asks for 1 %, and its truth and score must say what it reached
+    _, truth = case_campaign(CaseSpec(0, 1, "stocky_portal", "axial_prestress", "medium", "misfit_tie",
+                                             "right_column"))
+    primary = truth["primary"]
+    assert primary["target_footprint"] == 0.01 and primary["footprint"] < 0.5 * FOOTPRINTS["small"]
+    assert reached_level(primary["footprint"], primary["channel"]) == FAINT
+    shift = np.asarray(truth["article_hz"]) / article_frequencies(Article(proving_frame("stocky_portal"))) - 1.0
+    assert np.max(np.abs(shift[:7])) < 0.5 * FOOTPRINTS["small"]  # the article itself: no 1 % anywhere in the band
 
 
 def test_every_variant_is_known():

@@ -28,8 +28,8 @@ from workbench.workflow.proving_validation import ProvingResult, run_proving_cas
 __all__ = ["CampaignDiagnosis", "diagnose_campaign", "validate", "validation_files"]
 
 CASE_COLUMNS = ["case", "seed", "frame", "category", "truth", "secondary", "level", "truth_where", "mechanism",
-                "footprint", "verdict", "where", "also", "partial", "confidence", "shrinkage", "right", "named_wrong",
-                "place_right", "wall_time_s"]
+                "footprint", "reached", "verdict", "where", "also", "partial", "confidence", "shrinkage", "right",
+                "named_wrong", "place_right", "wall_time_s"]
 
 
 @dataclass(frozen=True)

@@ -9,15 +9,21 @@ were set on a development mix of another seed, and a validation run must use a s
 
 **Scores**, each a rate with its Wilson 95 % interval (scipy's ``binomtest(...).proportion_ci``):
 
-- ``single_accuracy``: a nameable single effect (one effect of the vocabulary) named right;
+- ``single_accuracy``: a nameable single effect (one effect of the vocabulary, not ``faint``) named right;
 - ``confident_wrong``: a named effect (the verdict or one in ``also``) that the case does not hold, over all
   cases, and over the cases where an effect was named (``named_wrong``);
 - ``none_false_positive``: a no-effect case given anything but ``none``;
-- ``outside_unexplained``: an out-of-vocabulary case given ``unexplained`` (``partial`` included);
-- ``combined_primary``: a combined case whose primary effect is named (verdict or ``also``);
+- ``outside_unexplained``: an out-of-vocabulary case, not ``faint``, given ``unexplained`` (``partial`` included);
+- ``combined_primary``: a combined case, its primary not ``faint``, whose primary effect is named (verdict or
+  ``also``);
 - ``abstention``: an effect case given ``none`` or ``unexplained``;
 - ``place_accuracy``: the place of a right verdict (an added mass by the member it sits on);
-- ``single_accuracy_by_level``: the same by footprint (small, medium, large).
+- ``single_accuracy_by_level``: the same by the rung of the footprint the case reached
+  (`workbench.proving.cases.reached_level`), and ``single_accuracy_by_requested_level`` by the rung it asked for
+  (every single case; the scores of seeds up to 12 were given this way);
+- ``faint_none``: a case whose primary effect reached less than half the small rung's footprint (``faint``: no
+  diagnosis can tell it from the as-built frame) given ``none``; these cases count in no rate above but
+  ``confident_wrong``.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ from scipy.stats import binomtest
 from workbench.diagnose.candidates import members_at
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.frame import Frame
-from workbench.proving.cases import IDENTIFICATION, CaseSpec, case_campaign, case_mix
+from workbench.proving.cases import FAINT, IDENTIFICATION, LEVELS, CaseSpec, case_campaign, case_mix, reached_level
 from workbench.proving.frames import proving_frame
 from workbench.proving.mechanisms import NONE, OUTSIDE
 from workbench.rig.effects import ADDED_MASS, UNEXPLAINED
@@ -67,6 +73,7 @@ class ProvingResult:
     place_right: bool | None
     wall_time_s: float
     record: dict
+    reached: str = ""  # the rung the primary's footprint reached (`reached_level`); "" without an effect
 
 
 def validation_specs(cases: int, seed: int) -> list[CaseSpec]:
@@ -119,7 +126,8 @@ def run_proving_case(_: Any, spec: CaseSpec) -> ProvingResult:
         spec.level, truth["where"], primary.get("mechanism"), primary.get("footprint"), result.verdict,
         result.where, tuple(a["effect"] for a in result.also), (result.partial or {}).get("effect"),
         result.confidence, result.shrinkage, bool(right), any(e not in allowed for e in named), place, wall,
-        diagnosis_record(campaign.name, result))
+        diagnosis_record(campaign.name, result),
+        reached_level(primary["footprint"], primary["channel"]) if primary else "")
 
 
 def wilson(hits: int, n: int) -> dict[str, Any]:
@@ -144,19 +152,27 @@ def score(results: list[ProvingResult]) -> dict[str, Any]:
         row = confusion.setdefault(r.truth if r.category != "combined" else f"{r.truth} (+ secondary)", {})
         row[r.verdict] = row.get(r.verdict, 0) + 1
     placed = [r for r in results if r.place_right is not None]
+
+    def single(r: ProvingResult) -> bool:
+        return r.category == "single" and r.reached != FAINT
+
     return {
         "cases": len(results),
-        "single_accuracy": _rate(results, lambda r: r.category == "single", lambda r: r.right),
-        "single_accuracy_by_level": {level: _rate([r for r in results if r.level == level],
-                                                  lambda r: r.category == "single", lambda r: r.right)
-                                     for level in ("small", "medium", "large")},
-        "single_partial_right": _rate(results, lambda r: r.category == "single",
-                                      lambda r: r.right or r.partial == r.truth),
+        "single_accuracy": _rate(results, single, lambda r: r.right),
+        "single_accuracy_by_level": {level: _rate([r for r in results if r.reached == level], single,
+                                                  lambda r: r.right) for level in LEVELS},
+        "single_accuracy_by_requested_level": {level: _rate([r for r in results if r.level == level],
+                                                            lambda r: r.category == "single", lambda r: r.right)
+                                               for level in LEVELS},
+        "faint_none": _rate(results, lambda r: r.reached == FAINT, lambda r: r.verdict == NONE),
+        "single_partial_right": _rate(results, single, lambda r: r.right or r.partial == r.truth),
         "confident_wrong": _rate(results, lambda r: True, lambda r: r.named_wrong),
         "named_wrong": _rate(results, lambda r: r.verdict not in (NONE, UNEXPLAINED), lambda r: r.named_wrong),
         "none_false_positive": _rate(results, lambda r: r.category == "none", lambda r: r.verdict != NONE),
-        "outside_unexplained": _rate(results, lambda r: r.category == "outside", lambda r: r.verdict == UNEXPLAINED),
-        "combined_primary": _rate(results, lambda r: r.category == "combined", lambda r: r.right),
+        "outside_unexplained": _rate(results, lambda r: r.category == "outside" and r.reached != FAINT,
+                                     lambda r: r.verdict == UNEXPLAINED),
+        "combined_primary": _rate(results, lambda r: r.category == "combined" and r.reached != FAINT,
+                                  lambda r: r.right),
         "abstention": wilson(sum(r.verdict in (NONE, UNEXPLAINED) for r in effect_cases), len(effect_cases)),
         "place_accuracy": wilson(sum(bool(r.place_right) for r in placed), len(placed)),
         "confusion": confusion,

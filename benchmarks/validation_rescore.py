@@ -1,0 +1,76 @@
+"""The blind validations in ``reports/`` scored again with the current scores, from their ``cases.csv``.
+
+Run from the repository root: ``python benchmarks/validation_rescore.py [--since SEED]`` (under a second).
+
+A run's verdicts are fixed once it has run; the scores read them. Since the footprint each case reached was
+recorded from the start, the runs of seeds before the ``reached`` column (up to 12) are read at the rung
+their footprint reached (`workbench.proving.cases.reached_level`) with ``faint`` cases set aside, as later runs
+are, so that every seed is scored alike. Prints, per seed, the headline rates with their Wilson 95 % intervals,
+and pooled over the seeds from ``--since`` on (8 by default). Each seed ran the rules of its day
+(``reports/diagnosis.md``): a pooled rate is over those rule sets, not the current rules'.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+from workbench.proving.cases import reached_level
+from workbench.workflow.proving_validation import ProvingResult, score
+
+REPO = Path(__file__).resolve().parents[1]
+HEADLINE = ("single_accuracy", "confident_wrong", "none_false_positive", "outside_unexplained", "faint_none")
+
+
+def _number(text: str) -> float | None:
+    return float(text) if text not in ("", "None") else None
+
+
+def load(path: Path) -> list[ProvingResult]:
+    """The `ProvingResult` of every row of a ``cases.csv`` (without the per-case record)."""
+    results = []
+    for row in csv.DictReader(path.open()):
+        footprint = _number(row["footprint"])
+        channel = "damping" if row["truth"] == "joint_damping" else "frequency"
+        reached = row.get("reached") or (reached_level(footprint, channel) if footprint is not None else "")
+        results.append(ProvingResult(
+            int(row["case"]), int(row["seed"]), row["frame"], row["category"], row["truth"], row["secondary"] or None,
+            row["level"], row["truth_where"] or None, row["mechanism"] or None, footprint, row["verdict"],
+            row["where"] or None, tuple(row["also"].split()), row["partial"] or None, float(row["confidence"]),
+            float(row["shrinkage"]), row["right"] == "True", row["named_wrong"] == "True",
+            None if row["place_right"] in ("", "None") else row["place_right"] == "True",
+            float(row["wall_time_s"]), {}, reached))
+    return results
+
+
+def _rate(s: dict) -> str:
+    if s["rate"] is None:
+        return f"{'-':>24s}"
+    lo, hi = s["ci95"]
+    return f"{s['hits']:4d}/{s['n']:<4d} {100 * s['rate']:5.1f} [{100 * lo:4.1f}, {100 * hi:4.1f}]"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--since", type=int, default=8, help="pool the seeds from this one on (default 8)")
+    since = parser.parse_args().since
+    runs = sorted((REPO / "reports").glob("diagnosis_validation_seed*/cases.csv"),
+                  key=lambda p: int(p.parent.name.removeprefix("diagnosis_validation_seed")))
+    print(f"{'seed':>6s} " + " ".join(f"{k:>24s}" for k in HEADLINE))
+    pooled: list[ProvingResult] = []
+    for path in runs:
+        results = load(path)
+        if int(path.parent.name.rsplit("seed", 1)[1]) >= since:
+            pooled += results
+        s = score(results)
+        print(f"{path.parent.name.removeprefix('diagnosis_validation_seed'):>6s} "
+              + " ".join(_rate(s[k]) for k in HEADLINE))
+    s = score(pooled)
+    print(f"{'>=' + str(since):>6s} " + " ".join(_rate(s[k]) for k in HEADLINE))
+    by_level = ", ".join(f"{level} {_rate(v).strip()}" for level, v in s["single_accuracy_by_level"].items())
+    print(f"pooled single effects by the rung reached: {by_level}")
+
+
+if __name__ == "__main__":
+    main()
