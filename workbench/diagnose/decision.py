@@ -9,9 +9,11 @@ seed's run, never tuned on one):
 1. **A gap, channel by channel.** Frequencies have a gap when the baseline's chi-square exceeds its
    ``1 - GAP_LEVEL`` quantile (the omnibus test: chi-square law, one degree of freedom per mean), or when
    one candidate of the channel lowers it beyond chance (the targeted test, `_evidence`: the drop read as
-   chi-square with the candidate's parameter count, its p-value times the number of candidates below
-   ``GAP_LEVEL``); damping likewise, with the degrees of freedom of its two fitted parameters removed. The
-   omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
+   chi-square with the candidate's parameter count, and the least p-value of the channel's candidates read
+   against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``; until seed 13 it
+   was multiplied by the number of candidates, Bonferroni); damping likewise (its few candidates by
+   Bonferroni), with the degrees of freedom of its two fitted parameters removed. The omnibus test sees a
+   gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
    With several excitation levels, the frequencies' chi-square is split into the line in amplitude through
    the levels' residuals (`workbench.diagnose.observations.level_contrast_chi2`), whose covariance the
@@ -19,7 +21,7 @@ seed's run, never tuned on one):
    (``levels``), and the rest, read against chi-square with the line's degrees of freedom removed; the
    omnibus test rejects when either does (each at ``GAP_LEVEL``). The softening candidates' drops are read
    against F too, and amplitude softening is named only where the levels differ (the line's F test or a
-   softening drop, Bonferroni over all the channel's candidates, below ``GAP_LEVEL``).
+   softening drop, made family-wise over all the channel's candidates as above, below ``GAP_LEVEL``).
 2. **Explained.** The best candidate on that channel (least held-out score, leave one mode out)
    explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
    the held-out RMS error at all (`MIN_SHRINKAGE` = 0). It used to have to shrink it by 10 %; but the RMS error
@@ -56,6 +58,7 @@ seed's run, never tuned on one):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,12 +66,13 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import f as f_law
 
 from workbench.diagnose.combined import PairFit
-from workbench.diagnose.fitting import CandidateFit
+from workbench.diagnose.family import NullFamily, null_family
+from workbench.diagnose.fitting import CandidateFit, Frequencies
 from workbench.diagnose.observations import Observations, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
 __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
-           "channel_gaps", "decide", "type_confidence"]
+           "channel_gaps", "decide", "frequency_null", "type_confidence"]
 
 GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
 EXPLAINED_LEVEL = 0.1  # a candidate's held-out chi-square within its 90 % quantile: explained (module docstring)
@@ -93,12 +97,13 @@ class Verdict:
 
 
 def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit,
-                 ranking: list[CandidateFit] | None = None) -> dict[str, dict]:
+                 ranking: list[CandidateFit] | None = None, null: NullFamily | None = None) -> dict[str, dict]:
     """Each channel's gap tests (module docstring, 1): the omnibus chi-square (for frequencies at several levels,
     without the levels' line), its degrees of freedom and threshold, and the targeted test's best candidate
     (``evidence``: its in-sample chi-square drop and its family-wise p-value); for frequencies at several
     levels, ``levels``: the line's chi-square, its degrees of freedom, the scatter's, its F p-value, the best
     softening drop's p-value and whether the levels differ (``gap``); ``gap`` when a test rejects at `GAP_LEVEL`.
+    ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni.
     """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
@@ -112,14 +117,15 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
         whole = chi2_f if name == "frequency" else chi2_d  # the candidates' chi-squares hold the levels' part
         channel = [c for c in ranking or [] if c.channel == name]
-        evidence = _evidence(channel, whole, name, obs.scatter_dof)
+        family = null if name == "frequency" else None
+        evidence = _evidence(channel, whole, name, obs.scatter_dof, null=family)
         omnibus = value > threshold
         out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "evidence": evidence,
                      "observations": n_f if name == "frequency" else n_d}
         if name == "frequency" and obs.amplitude.size > 1:  # the levels' line, its scatter from a few tests
             p_levels = float(f_law.sf(contrast / q, q, obs.scatter_dof)) if q else 1.0
             softening = _evidence([c for c in channel if c.effect == AMPLITUDE_SOFTENING.name], chi2_f, name,
-                                  obs.scatter_dof, family=len(channel))
+                                  obs.scatter_dof, family=len(channel), null=family)
             out[name]["levels"] = {"chi2": float(contrast), "dof": q, "scatter_dof": obs.scatter_dof,
                                    "p_value": p_levels, "softening_p_value": softening["p_value"],
                                    "gap": bool(min(p_levels, softening["p_value"]) < GAP_LEVEL)}
@@ -129,32 +135,48 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     return out
 
 
+def _law(c: CandidateFit, scatter_dof: float) -> Callable[[np.ndarray], np.ndarray]:
+    """A candidate's p-value of its in-sample drops: chi-square with its parameter count (Wilks); a softening
+    drop, which the levels' differences make, as F with ``scatter_dof`` (their scatter from a few tests).
+    """
+    k = max(c.parameter_count, 1)
+    if c.effect == AMPLITUDE_SOFTENING.name and math.isfinite(scatter_dof):
+        return lambda drop: f_law.sf(np.asarray(drop) / k, k, scatter_dof)
+    return lambda drop: chi2_law.sf(drop, k)
+
+
+def frequency_null(obs: Observations, ranking: list[CandidateFit],
+                   models: dict[tuple[str, str | None, str], tuple[Frequencies, ...]]) -> NullFamily:
+    """The frequency channel's `workbench.diagnose.family.NullFamily`: each frequency candidate of ``ranking``
+    by its curves in ``models`` (`CandidateFit.key`; one curve, or two for a support's two-dof form; a
+    candidate without counts by the union bound), read with its own law (`_law`).
+    """
+    channel = [c for c in ranking if c.channel == "frequency"]
+    return null_family(obs, [models.get(c.key, ()) for c in channel], [_law(c, obs.scatter_dof) for c in channel])
+
+
 def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str,
-              scatter_dof: float = math.inf, family: int | None = None) -> dict:
+              scatter_dof: float = math.inf, family: int | None = None, null: NullFamily | None = None) -> dict:
     """The targeted test of a channel: the candidate whose fit lowers the in-sample chi-square the most beyond
-    chance, each drop read as chi-square with the candidate's parameter count (Wilks; a softening drop, which
-    the levels' differences make, as F with ``scatter_dof``), its p-value multiplied by the number of
-    candidates tried (``family``, default ``candidates``: Bonferroni, so that a search over many effects and
-    places is not read as a find). An omnibus test spreads its power over every direction the residual could
-    take; this one looks along the few the vocabulary names, so that a 1 % effect is seen where the omnibus
-    sees chance.
+    chance, each drop read with its law (`_law`), its p-value made family-wise over the candidates tried so
+    that a search over many effects and places is not read as a find: read against the least p-value of the
+    channel's candidates under no effect (``null``, `workbench.diagnose.family`), or without it multiplied by
+    their number (``family``, default ``candidates``: Bonferroni). An omnibus test spreads its power over every
+    direction the residual could take; this one looks along the few the vocabulary names, so that a 1 % effect
+    is seen where the omnibus sees chance.
     """
     family = len(candidates) if family is None else family
-    best: dict = {"effect": None, "where": None, "chi2_drop": 0.0, "p_value": 1.0, "candidates": family}
+    best: dict = {"effect": None, "where": None, "chi2_drop": 0.0, "p_value": 1.0, "candidates": family,
+                  "adjustment": "Bonferroni" if null is None else "min-p"}
     for c in candidates:
         in_sample = c.chi2 - c.chi2_frequency if channel == "damping" else c.chi2_frequency
         drop = baseline_chi2 - in_sample
         if not math.isfinite(drop) or drop <= 0.0:
             continue
-        k = max(c.parameter_count, 1)
-        if c.effect == AMPLITUDE_SOFTENING.name and math.isfinite(scatter_dof):  # its evidence is the levels'
-            p_one = float(f_law.sf(drop / k, k, scatter_dof))  # differences, their scatter from a few tests: F
-        else:
-            p_one = float(chi2_law.sf(drop, k))
-        p = min(1.0, p_one * family)
+        p_one = float(_law(c, scatter_dof)(np.array(drop)))
+        p = min(1.0, p_one * family) if null is None else null.adjusted(p_one)
         if p < best["p_value"]:
-            best = {"effect": c.effect, "where": c.where, "chi2_drop": float(drop), "p_value": p,
-                    "candidates": family}
+            best = {**best, "effect": c.effect, "where": c.where, "chi2_drop": float(drop), "p_value": p}
     return best
 
 
@@ -262,12 +284,13 @@ def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
 
 
 def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, ranking: list[CandidateFit],
-           predictions: dict, pairs: list[PairFit] | None = None) -> Verdict:
+           predictions: dict, pairs: list[PairFit] | None = None, null: NullFamily | None = None) -> Verdict:
     """The verdict (module docstring). ``ranking`` best held-out chi-square first; ``predictions`` each
     candidate's in-sample means by `CandidateFit.key`; ``pairs`` `workbench.diagnose.combined.pair_fits`'s
-    (None: not computed, as when a single candidate explains the frequency gap).
+    (None: not computed, as when a single candidate explains the frequency gap); ``null`` the frequency
+    candidates' `frequency_null` (None: Bonferroni).
     """
-    gaps = channel_gaps(obs, baseline_hz, baseline, ranking)
+    gaps = channel_gaps(obs, baseline_hz, baseline, ranking, null)
     if not any(g["gap"] for g in gaps.values()):
         worst = max((chi2_law.cdf(g["chi2"], g["dof"]) for g in gaps.values()), default=0.0)
         return Verdict(NONE.name, None, 0.0, float(1.0 - worst), None, gaps=gaps)

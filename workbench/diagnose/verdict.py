@@ -45,7 +45,7 @@ from workbench.diagnose.baseline import Baseline, baseline
 from workbench.diagnose.candidates import frame_curves
 from workbench.diagnose.combined import PairFit, PairGrid, form_pairs, pair_fits
 from workbench.diagnose.curves import Curve
-from workbench.diagnose.decision import decide
+from workbench.diagnose.decision import decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
@@ -243,12 +243,16 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     curves = (matrix_curves(base, obs, residual, weight) if isinstance(frame, MatrixModel)
               else frame_curves(base, obs, residual, weight))
     ranking, predictions, models = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping, shares[0])
-    verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions)
+    groups: dict[tuple[str, str | None, str], tuple[Frequencies, ...]] = {k: (m,) for k, m in models.items()}
+    groups.update({(a.curve.effect, a.curve.where, f"{a.curve.form}+{b.curve.form}"): (a, b)
+                   for a, b in form_pairs(list(models.values()), SUPPORT_COMPLIANCE.name)})
+    null = frequency_null(obs, ranking, groups)
+    verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null)
     pairs: list[PairFit] = []
     if verdict.effect == UNEXPLAINED and verdict.gaps.get("frequency", {}).get("gap"):
         say("pairs of effects")
         pairs = pair_fits(ranking, models, obs, baseline_hz)
-        verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs)
+        verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs, null)
     counts = {name: verdict.gaps[name]["observations"] if name in verdict.gaps else 0
               for name in ("frequency", "damping")}
     return Diagnosis(measured.modes, obs.amplitude, obs.frequency_hz, obs.frequency_se, baseline_hz,

@@ -165,8 +165,9 @@ def _evidence_text(evidence: dict | None) -> str:
     if not evidence or not evidence.get("effect"):
         return ""
     where = f" at {evidence['where']}" if evidence.get("where") else ""
+    how = {"min-p": ", their least p-value's law under no effect"}.get(evidence.get("adjustment", ""), "")
     return (f", {evidence['effect']}{where} lowers it by {evidence['chi2_drop']:.3g} (p = {evidence['p_value']:.2g} "
-            f"over {evidence['candidates']} candidates)")
+            f"over {evidence['candidates']} candidates{how})")
 
 
 def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]:
