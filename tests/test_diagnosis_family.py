@@ -116,3 +116,58 @@ def test_a_tangent_predicts_the_drop_its_curve_fit_finds_on_chance_residuals(two
         assert np.allclose(fitted, linear, rtol=0.15, atol=0.15), (key, fitted, linear)
         checked += 1
     assert checked >= 2
+
+
+class _Line:
+    """A stand-in curve model, linear in its coordinate: what `tangent` reads of a `Frequencies`."""
+
+    def __init__(self, nominal: float, lo: float = 0.0, hi: float = 1.0, amplitude: bool = False):
+        from types import SimpleNamespace
+
+        self.lo, self.hi, self.amplitude = lo, hi, amplitude
+        self.direction = np.array([[1.0, -2.0, 0.5]])
+        self.obs = SimpleNamespace(frequency_hz=np.full((1, 3), 100.0))
+        self.curve = SimpleNamespace(nominal=nominal, coordinate=lambda v: v)
+
+    def predict(self, u: float) -> np.ndarray:
+        return 100.0 * (1.0 + 0.01 * u * self.direction)
+
+
+def test_a_tangent_is_two_sided_only_where_no_effect_lies_inside_the_range():
+    present = np.ones((1, 3), bool)
+    for nominal, sided in ((0.0, True), (1.0, True), (0.5, False), (0.01, False), (0.99, False)):
+        t = tangent(_Line(nominal), present)  # type: ignore[arg-type]
+        assert t is not None and t.one_sided == (sided,)
+        g = t.columns[:, 0] / np.linalg.norm(t.columns[:, 0])
+        d = _Line(0).direction[0] / np.linalg.norm(_Line(0).direction[0])
+        assert abs(abs(g @ d) - 1.0) < 1e-12  # the curve's own direction
+        if nominal == 1.0:
+            assert g @ d < 0  # into the range: from the top end, downwards
+    flat = _Line(0.0)
+    flat.direction = np.zeros((1, 3))
+    t = tangent(flat, present)  # type: ignore[arg-type]
+    assert t is not None and t.columns.shape == (3, 0)  # moves nothing: lowers nothing, counts for nothing
+    g = np.array([1.0, 0.0, 2.0])
+    with_flat = NullFamily([Tangent(g[:, None], (True,)), t], [_law(1)] * 2, np.eye(3), DRAWS, seed=4)
+    alone = NullFamily([Tangent(g[:, None], (True,))], [_law(1)], np.eye(3), DRAWS, seed=4)
+    assert with_flat.adjusted(0.01) == alone.adjusted(0.01) and with_flat.missing == 0
+    assert alone.adjusted(1e-12) > 0.0  # never 0: the measured draw counts among the draws
+
+
+def test_masses_softenings_and_candidates_without_curves_take_bonferronis_term():
+    from workbench.diagnose.decision import frequency_null
+    from workbench.diagnose.fitting import CandidateFit
+
+    def fit(effect, where, channel="frequency"):
+        return CandidateFit(effect, where, {}, channel, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, None, None, 1, 0.0)
+
+    obs = observations(MeasuredModes(100.0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal((6, 3)))))
+    line = _Line(0.5)
+    line.obs = obs  # type: ignore[assignment]
+    ranking = [fit("joint_stiffness_shift", "A"), fit("added_mass", "beam"), fit("amplitude_softening", "A"),
+               fit("axial_prestress", "beam"), fit("joint_damping", "A", "damping")]
+    models = {c.key: (line,) for c in ranking if c.effect != "axial_prestress"}
+    null = frequency_null(obs, ranking, models)  # type: ignore[arg-type]
+    assert null.size == 4 and null.missing == 3  # the mass, the softening and the force without a curve
+    p = 0.01  # the joint drawn, two-sided (its nominal inside the range): p; plus Bonferroni's three terms
+    assert null.adjusted(p) == pytest.approx(p + 3 * p, abs=4 * np.sqrt(p / 20000))

@@ -10,8 +10,9 @@ seed's run, never tuned on one):
    ``1 - GAP_LEVEL`` quantile (the omnibus test: chi-square law, one degree of freedom per mean), or when
    one candidate of the channel lowers it beyond chance (the targeted test, `_evidence`: the drop read as
    chi-square with the candidate's parameter count, and the least p-value of the channel's candidates read
-   against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``; until seed 13 it
-   was multiplied by the number of candidates, Bonferroni); damping likewise (its few candidates by
+   against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``, added masses and
+   softenings by Bonferroni's term; until seed 13 every candidate's p-value was multiplied by their number,
+   Bonferroni); damping likewise (its few candidates by
    Bonferroni), with the degrees of freedom of its two fitted parameters removed. The omnibus test sees a
    gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
@@ -69,7 +70,7 @@ from workbench.diagnose.combined import PairFit
 from workbench.diagnose.family import NullFamily, null_family
 from workbench.diagnose.fitting import CandidateFit, Frequencies
 from workbench.diagnose.observations import Observations, frequency_chi2, level_contrast_chi2
-from workbench.rig.effects import AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
+from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
 __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
            "channel_gaps", "decide", "frequency_null", "type_confidence"]
@@ -80,6 +81,7 @@ MIN_SHRINKAGE = 0.0  # and its held-out RMS error shrinks by more than this (at 
 NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
 PAIR_EVIDENCE = 6.0  # each effect of a pair lowers the in-sample chi-square by this ("strong" on the BIC scale)
 DAMPING_PARAMETERS = 2  # the damping baseline's level and trend
+UNION_BOUND = (ADDED_MASS.name, AMPLITUDE_SOFTENING.name)  # candidates the null draws do not stand for (family.py)
 
 
 @dataclass(frozen=True)
@@ -148,11 +150,13 @@ def _law(c: CandidateFit, scatter_dof: float) -> Callable[[np.ndarray], np.ndarr
 def frequency_null(obs: Observations, ranking: list[CandidateFit],
                    models: dict[tuple[str, str | None, str], tuple[Frequencies, ...]]) -> NullFamily:
     """The frequency channel's `workbench.diagnose.family.NullFamily`: each frequency candidate of ``ranking``
-    by its curves in ``models`` (`CandidateFit.key`; one curve, or two for a support's two-dof form; a
-    candidate without counts by the union bound), read with its own law (`_law`).
+    by its curves in ``models`` (`CandidateFit.key`; one curve, or two for a support's two-dof form), read with
+    its own law (`_law`); a candidate without curves, and every added mass and softening (`UNION_BOUND`), adds
+    its own p-value instead (the union bound: `workbench.diagnose.family` says why).
     """
     channel = [c for c in ranking if c.channel == "frequency"]
-    return null_family(obs, [models.get(c.key, ()) for c in channel], [_law(c, obs.scatter_dof) for c in channel])
+    drawn = [models.get(c.key, ()) if c.effect not in UNION_BOUND else () for c in channel]
+    return null_family(obs, drawn, [_law(c, obs.scatter_dof) for c in channel])
 
 
 def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str,

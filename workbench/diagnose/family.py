@@ -4,8 +4,8 @@ under no effect (the min-p adjustment of Westfall & Young 1993), where Bonferron
 The frequency channel's targeted test (`workbench.diagnose.decision`, 1) fits every candidate, reads each
 in-sample drop of the chi-square as a p-value, and keeps the least. Bonferroni's bound on that search, the
 p-value times the number of candidates, holds whatever their dependence, but the candidates of one frame are
-far from independent: one effect at neighbouring places, a mass at several positions along one member, the
-forms of one support and each joint's softening move the modes in nearly the same pattern. Thirty such
+far from independent: one effect at neighbouring places, the forms of one support, every joint's modulus and
+each one's move the modes in nearly the same patterns. Thirty such
 candidates are a handful of independent ones, and the bound then asks a 1 % effect for a drop of 17 where
 chance gives 12 once in a hundred (proving-ground seed 12, cases 13 and 194: medium clamps and masses left
 ``none``).
@@ -19,9 +19,12 @@ columns).
 Each simulated drop is read with the candidate's own law, as the measured drop is; the family-wise p-value of
 a measured least p-value ``p`` is the share of `NULL_DRAWS` draws whose least p-value is ``p`` or below. It is
 exact for candidates linear about no effect under the stated covariance, and never above Bonferroni's bound
-(but for the draws' sampling error: about 1e-3 at ``p`` = 0.01). A candidate whose tangent cannot be formed
-adds its own p-value (the union bound). The draws use a fixed seed (`NULL_SEED`): the same campaign gives the
-same p-values.
+(but for the draws' sampling error: about 1e-3 at ``p`` = 0.01). A candidate the draws do not stand for adds its
+own p-value (the union bound, Bonferroni's term): one whose tangent cannot be formed; an added mass, whose places
+a screen of the whole frame picked from the data and whose drop is read with three parameters to charge that
+search, which a fixed tangent does not repeat; a joint's softening, whose drop is read against F because the
+levels' covariance is estimated from a few tests, which the draws take as known (`workbench.diagnose.decision`).
+The draws use a fixed seed (`NULL_SEED`): the same campaign gives the same p-values.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.diagnose.fitting import Frequencies
+from workbench.diagnose.fitting import BOUND_TOLERANCE, Frequencies
 from workbench.diagnose.observations import Observations
 
 __all__ = ["NULL_DRAWS", "NULL_SEED", "TANGENT_STEP", "Tangent", "NullFamily", "tangent", "null_family"]
@@ -54,8 +57,9 @@ class Tangent:
 
 
 def tangent(model: Frequencies, present: np.ndarray) -> Tangent | None:
-    """The tangent of one curve's candidate at its no-effect coordinate (softening: the slope nil), or None when
-    the curve has no value there or does not move the means.
+    """The tangent of one curve's candidate at its no-effect coordinate (softening: the slope nil), two-sided where
+    that coordinate lies inside the range (beyond `BOUND_TOLERANCE` of either end), else into the range; no
+    column where the curve does not move the means (it lowers no chi-square), None where it has no value.
     """
     span = model.hi - model.lo
     if model.amplitude:
@@ -64,20 +68,21 @@ def tangent(model: Frequencies, present: np.ndarray) -> Tangent | None:
         return None
     else:
         start = float(model.curve.coordinate(model.curve.nominal))
+    below, above = start - model.lo, model.hi - start
+    two_sided = min(below, above) > BOUND_TOLERANCE * span
     h = TANGENT_STEP * span
-    inside = start - h >= model.lo and start + h <= model.hi
-    if inside:
-        change = 0.5 * (model.predict(start + h) - model.predict(start - h))
-    elif start + h <= model.hi:
-        change = model.predict(start + h) - model.predict(start)
-    elif start - h >= model.lo:
-        change = model.predict(start - h) - model.predict(start)
+    if two_sided and min(below, above) >= h:
+        change = model.predict(start + h) - model.predict(start - h)
+    elif above >= below:  # the roomier side: the only one at an end, either one inside (the sign is then free)
+        change = model.predict(start + min(h, above)) - model.predict(start)
     else:
-        return None
+        change = model.predict(start - min(h, below)) - model.predict(start)
     column = (change / model.obs.frequency_hz)[present]
-    if not (np.all(np.isfinite(column)) and np.any(column != 0.0)):
+    if not np.all(np.isfinite(column)):
         return None
-    return Tangent(column[:, None], (not inside,))
+    if not np.any(column != 0.0):
+        return Tangent(np.zeros((column.size, 0)), ())
+    return Tangent(column[:, None], (not two_sided,))
 
 
 def _drops(columns: np.ndarray, one_sided: tuple[bool, ...], z: np.ndarray) -> np.ndarray:
@@ -119,27 +124,32 @@ class NullFamily:
             if t is None:
                 self.missing += 1
                 continue
+            if t.columns.shape[1] == 0:  # it cannot lower the chi-square
+                continue
             whitened = np.linalg.solve(lower, t.columns)  # z . L^-1 g: the drop in the chi-square's metric
             least = np.minimum(least, law(_drops(whitened, t.one_sided, z)))
         self.least = np.sort(least)
         self.size = len(tangents)
 
     def adjusted(self, p_one: float) -> float:
-        """The family-wise p-value of a candidate's own p-value ``p_one``."""
-        share = np.searchsorted(self.least, p_one, side="right") / self.least.size
+        """The family-wise p-value of a candidate's own p-value ``p_one`` (never 0: the draws' share counts the
+        measured one among them).
+        """
+        share = (np.searchsorted(self.least, p_one, side="right") + 1) / (self.least.size + 1)
         return float(min(1.0, share + self.missing * p_one))
 
 
 def null_family(obs: Observations, models: Sequence[Sequence[Frequencies]],
                 laws: Sequence[Callable[[np.ndarray], np.ndarray]], draws: int = NULL_DRAWS) -> NullFamily:
     """The `NullFamily` of a frequency channel whose candidates are ``models`` (one curve, or the two of a
-    support's two-dof form) with their p-value ``laws``, under the covariance of the in-sample chi-square.
+    support's two-dof form; none for a candidate left to the union bound) with their p-value ``laws``, under the
+    covariance of the in-sample chi-square.
     """
     present, covariance = obs.joint_covariance(np.ones(obs.frequency_hz.shape[1], bool))
     tangents: list[Tangent | None] = []
     for group in models:
         parts = [tangent(m, present) for m in group]
-        if any(p is None for p in parts):
+        if not parts or any(p is None for p in parts):
             tangents.append(None)
             continue
         tangents.append(Tangent(np.hstack([p.columns for p in parts if p is not None]),

@@ -33,6 +33,15 @@ LEVEL_TABLES = (  # key, what the level is
 )
 
 
+def _level_tables(record: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """(what the level is, scores by level): a record written before the rung reached was scored (seed 12 and
+    before) has its levels as asked for.
+    """
+    if "single_accuracy_by_requested_level" not in record:
+        return [("footprint asked for", record["single_accuracy_by_level"])]
+    return [(what, record[key]) for key, what in LEVEL_TABLES]
+
+
 def _rate(score: dict[str, Any]) -> str:
     if not score or score.get("rate") is None:
         return "no case"
@@ -45,8 +54,8 @@ def validation_text(record: dict[str, Any]) -> str:
     lines = [f"blind validation on the proving ground: {record['cases']} cases, seed {record['seed']}"]
     lines += [f"{label}: {_rate(record.get(key, {}))}" + (f"  [target {target}]" if target else "")
               for key, label, target in SCORES]
-    for key, what in LEVEL_TABLES:
-        for level, score in record.get(key, {}).items():
+    for what, scores in _level_tables(record):
+        for level, score in scores.items():
             lines.append(f"  single effects, {level} ({what}): {_rate(score)}")
     verdicts = sorted({v for row in record["confusion"].values() for v in row})
     lines.append("confusion (rows: the case's primary effect, columns: verdict)")
@@ -79,8 +88,8 @@ def validation_html(record: dict[str, Any]) -> str:
     scores = html_table(["score", "rate (95 % Wilson interval)", "target"],
                         [(label, _rate(record.get(key, {})), target or "-") for key, label, target in SCORES], left=3)
     levels = "".join(html_table([what, "single effects named right"],
-                                [(level, _rate(s)) for level, s in record.get(key, {}).items()], left=2)
-                     for key, what in LEVEL_TABLES)
+                                [(level, _rate(s)) for level, s in scores.items()], left=2)
+                     for what, scores in _level_tables(record))
     verdicts = sorted({v for row in record["confusion"].values() for v in row})
     confusion = html_table(["primary effect \\ verdict", *verdicts],
                            [(t, *(row.get(v, 0) for v in verdicts)) for t, row in sorted(record["confusion"].items())])
@@ -101,7 +110,8 @@ nominal frame file); the truth was read afterwards. The decision's levels were f
 <p>A case asks for a rung of the footprint ladder (the largest relative frequency shift in the band: 0.3, 1 and
 3 %; added damping ratio 0.1, 0.3 and 1 %); where its mechanism cannot reach it within its physical bounds, it
 is read at the rung nearest the footprint it reached. Below half the small rung it is <em>faint</em>: as small
-as the as-built frame's own residual, it counts in no rate but confident-wrong.</p>{levels}
+as the as-built frame's own residual, it counts in none of the single, out-of-vocabulary or combined-primary
+rates.</p>{levels}
 <h2>Confusion matrix</h2>{confusion}
 <h2>Confidence</h2>{_confidence_figure(cases)}
 <h2>Every case</h2>{html_table(columns, rows, left=len(columns))}

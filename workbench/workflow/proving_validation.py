@@ -22,8 +22,9 @@ were set on a development mix of another seed, and a validation run must use a s
   (`workbench.proving.cases.reached_level`), and ``single_accuracy_by_requested_level`` by the rung it asked for
   (every single case; the scores of seeds up to 12 were given this way);
 - ``faint_none``: a case whose primary effect reached less than half the small rung's footprint (``faint``: no
-  diagnosis can tell it from the as-built frame) given ``none``; these cases count in no rate above but
-  ``confident_wrong``.
+  diagnosis can tell it from the as-built frame) given ``none``; these cases count in none of the single,
+  out-of-vocabulary or combined-primary rates (they do in ``confident_wrong``, ``abstention`` and the confusion
+  matrix).
 """
 
 from __future__ import annotations
