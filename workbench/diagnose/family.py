@@ -7,8 +7,7 @@ p-value times the number of candidates, holds whatever their dependence, but the
 far from independent: one effect at neighbouring places, the forms of one support, every joint's modulus and
 each one's move the modes in nearly the same patterns. Thirty such
 candidates are a handful of independent ones, and the bound then asks a 1 % effect for a drop of 17 where
-chance gives 12 once in a hundred (proving-ground seed 12, cases 13 and 194: medium clamps and masses left
-``none``).
+chance gives 12 once in a hundred (proving-ground seed 12, case 13: a medium clamp left ``none``).
 
 Here the least p-value is read against its own distribution under no effect. About the no-effect point each
 candidate changes the means along its tangent ``g`` (one column, or two for a support giving way in two dofs),

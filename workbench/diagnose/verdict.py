@@ -136,11 +136,14 @@ def _stated_damping_fit(obs: Observations, share: np.ndarray, stated: dict, mask
 def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], baseline_hz: np.ndarray,
                     fit_base_damping: DampingFit | None, joint_share: np.ndarray) -> tuple[
                         list[CandidateFit], dict[tuple[str, str | None, str], np.ndarray],
-                        dict[tuple[str, str | None, str], Frequencies]]:
-    """Every candidate fitted, ranked by held-out chi-square then BIC, their in-sample predictions and, for
-    the frequency candidates, their models, all by `CandidateFit.key`.
+                        dict[tuple[str, str | None, str], Frequencies],
+                        dict[tuple[str, str | None, str], tuple[Frequencies, ...]]]:
+    """Every candidate fitted, ranked by held-out chi-square then BIC, their in-sample predictions, the models of
+    the one-curve frequency candidates (the pairs' pool) and the curves of every frequency candidate (a
+    support's two-dof form: two; the targeted test's draws), all by `CandidateFit.key`.
     """
     ranking, predictions, models = [], {}, {}
+    two_forms: dict[tuple[str, str | None, str], tuple[Frequencies, ...]] = {}
     for curve in curves:
         model = Frequencies(base, obs, curve)
         fit, in_f = evaluate(curve.effect, curve.where, curve.parameters, EFFECTS[curve.effect].channel,
@@ -153,6 +156,7 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
         fit, in_f = _two_forms(a, b, obs, baseline_hz, fit_base_damping)
         ranking.append(fit)
         predictions[fit.key] = in_f
+        two_forms[fit.key] = (a, b)
     slope = AMPLITUDE_SOFTENING.fitted_parameter
     if obs.amplitude.size > 1:  # softening: a joint's stiffness curve read at gamma(a) = 1 - slope * a
         for curve in curves:
@@ -173,7 +177,7 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
                 ranking.append(fit)
                 predictions[fit.key] = baseline_hz
     ranking.sort(key=lambda c: (c.heldout_score, c.bic))
-    return ranking, predictions, models
+    return ranking, predictions, models, {**{k: (m,) for k, m in models.items()}, **two_forms}
 
 
 def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: np.ndarray,
@@ -242,10 +246,8 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     say("candidate effects: exact frequencies on parameter grids")
     curves = (matrix_curves(base, obs, residual, weight) if isinstance(frame, MatrixModel)
               else frame_curves(base, obs, residual, weight))
-    ranking, predictions, models = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping, shares[0])
-    groups: dict[tuple[str, str | None, str], tuple[Frequencies, ...]] = {k: (m,) for k, m in models.items()}
-    groups.update({(a.curve.effect, a.curve.where, f"{a.curve.form}+{b.curve.form}"): (a, b)
-                   for a, b in form_pairs(list(models.values()), SUPPORT_COMPLIANCE.name)})
+    ranking, predictions, models, groups = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping,
+                                                           shares[0])
     null = frequency_null(obs, ranking, groups)
     verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null)
     pairs: list[PairFit] = []
