@@ -55,17 +55,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--since", type=int, default=8, help="pool the seeds from this one on (default 8)")
     since = parser.parse_args().since
-    runs = sorted((REPO / "reports").glob("diagnosis_validation_seed*/cases.csv"),
-                  key=lambda p: int(p.parent.name.removeprefix("diagnosis_validation_seed")))
+    runs = sorted((int(p.parent.name.removeprefix("diagnosis_validation_seed")), p)
+                  for p in (REPO / "reports").glob("diagnosis_validation_seed*/cases.csv"))
     print(f"{'seed':>6s} " + " ".join(f"{k:>24s}" for k in HEADLINE))
     pooled: list[ProvingResult] = []
-    for path in runs:
+    for seed, path in runs:
         results = load(path)
-        if int(path.parent.name.rsplit("seed", 1)[1]) >= since:
+        if seed >= since:
             pooled += results
         s = score(results)
-        print(f"{path.parent.name.removeprefix('diagnosis_validation_seed'):>6s} "
-              + " ".join(_rate(s[k]) for k in HEADLINE))
+        print(f"{seed:>6d} " + " ".join(_rate(s[k]) for k in HEADLINE))
     s = score(pooled)
     print(f"{'>=' + str(since):>6s} " + " ".join(_rate(s[k]) for k in HEADLINE))
     by_level = ", ".join(f"{level} {_rate(v).strip()}" for level, v in s["single_accuracy_by_level"].items())

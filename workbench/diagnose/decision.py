@@ -61,6 +61,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 from scipy.stats import chi2 as chi2_law
@@ -141,8 +142,16 @@ def _law(c: CandidateFit, scatter_dof: float) -> Callable[[np.ndarray], np.ndarr
     """A candidate's p-value of its in-sample drops: chi-square with its parameter count (Wilks); a softening
     drop, which the levels' differences make, as F with ``scatter_dof`` (their scatter from a few tests).
     """
-    k = max(c.parameter_count, 1)
-    if c.effect == AMPLITUDE_SOFTENING.name and math.isfinite(scatter_dof):
+    softening = c.effect == AMPLITUDE_SOFTENING.name and math.isfinite(scatter_dof)
+    return _law_of(max(c.parameter_count, 1), scatter_dof if softening else None)
+
+
+@cache
+def _law_of(k: int, scatter_dof: float | None) -> Callable[[np.ndarray], np.ndarray]:
+    """`_law`'s function, one object per law: the targeted test's draws evaluate it once per law, not once per
+    candidate (`workbench.diagnose.family.NullFamily`).
+    """
+    if scatter_dof is not None:
         return lambda drop: f_law.sf(np.asarray(drop) / k, k, scatter_dof)
     return lambda drop: chi2_law.sf(drop, k)
 
