@@ -338,8 +338,8 @@ def test_shape_comparison_of_the_model_with_itself_is_exact():
     from workbench.extraction.records import MeasuredModes
     from workbench.io.campaign import Campaign
     from workbench.model.assembly import assemble
-    from workbench.model.modal import mac, model_modes
-    from workbench.workflow.report_inputs import dominant_real, shape_comparison
+    from workbench.model.modal import dominant_real, mac, model_modes
+    from workbench.workflow.report_inputs import shape_comparison
 
     frame = read_frame(REPO / "frames" / "one_bolt_vertical.toml")
     model = assemble(frame)

@@ -52,7 +52,15 @@ seed's run, never tuned on one):
    (`workbench.diagnose.combined`) that does, each of its effects lowering the in-sample chi-square by
    `PAIR_EVIDENCE` or more, neither at a bound, and amplitude softening in a pair only where the levels differ
    (as for a single effect); an explained damping gap adds ``joint_damping`` to a frequency verdict.
-5. **Otherwise** ``unexplained``, with the best partial explanation (``partial``: the best candidate on a
+5. **The FRF levels** (`workbench.diagnose.frf_levels`): a frequency effect named as one candidate is tested
+   against the levels of the measured modal constants, where the campaign measured them against a force at two
+   sensors or more in two tests or more (a frame file's model). Its model at the fitted parameter predicts each
+   mode's level; an added mass lowers the levels with the frequencies, a loss of stiffness does not. When the
+   measured levels contradict it (`workbench.diagnose.frf_levels.LEVEL_ALPHA`) and it fits them worse than the
+   nominal model does, the frequencies found an impostor (two cracks whose frequencies a point mass
+   mimics, a mass that a softer support mimics): the verdict is then ``unexplained`` with that effect as the
+   partial explanation and the level test beside it (``partial.frf_levels``).
+6. **Otherwise** ``unexplained``, with the best partial explanation (``partial``: the best candidate on a
    channel with a gap, when it shrinks the held-out error at all). ``none`` only when no channel has a gap.
 """
 
@@ -70,6 +78,7 @@ from scipy.stats import f as f_law
 from workbench.diagnose.combined import PairFit
 from workbench.diagnose.family import NullFamily, null_family
 from workbench.diagnose.fitting import CandidateFit, Frequencies
+from workbench.diagnose.frf_levels import LevelTest
 from workbench.diagnose.observations import Observations, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
@@ -97,6 +106,7 @@ class Verdict:
     partial: dict | None = None
     also: list[dict] = field(default_factory=list)
     gaps: dict = field(default_factory=dict)
+    frf_levels: dict | None = None  # the named frequency effect's level test (`workbench.diagnose.frf_levels`), if any
 
 
 def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit,
@@ -297,11 +307,13 @@ def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
 
 
 def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, ranking: list[CandidateFit],
-           predictions: dict, pairs: list[PairFit] | None = None, null: NullFamily | None = None) -> Verdict:
+           predictions: dict, pairs: list[PairFit] | None = None, null: NullFamily | None = None,
+           frf_levels: Callable[[CandidateFit], LevelTest | None] | None = None) -> Verdict:
     """The verdict (module docstring). ``ranking`` best held-out chi-square first; ``predictions`` each
     candidate's in-sample means by `CandidateFit.key`; ``pairs`` `workbench.diagnose.combined.pair_fits`'s
     (None: not computed, as when a single candidate explains the frequency gap); ``null`` the frequency
-    candidates' `frequency_null` (None: Bonferroni).
+    candidates' `frequency_null` (None: Bonferroni); ``frf_levels`` a candidate's FRF-level test
+    (`workbench.diagnose.frf_levels.LevelChannel.test`; None: no level channel).
     """
     gaps = channel_gaps(obs, baseline_hz, baseline, ranking, null)
     if not any(g["gap"] for g in gaps.values()):
@@ -318,9 +330,14 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
                 best[channel] = top
     also: list[dict] = []
     frequency_gap = "frequency" in gaps and gaps["frequency"]["gap"]
+    level_record = None
     if "frequency" in named:
         primary, confidence = named["frequency"]
         best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
+        test = frf_levels(primary) if frf_levels is not None else None
+        if test is not None and test.contradicted:
+            return _contradicted(primary, baseline, gaps, test)
+        level_record = None if test is None else test.record()
     elif frequency_gap:
         singles = _eligible("frequency", ranking, gaps["frequency"])
         chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None
@@ -337,7 +354,18 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
         return _unexplained(best, baseline, gaps, ranking)
     if "damping" in named and primary is not named["damping"][0]:
         also.append(_entry(named["damping"][0], baseline))
-    return Verdict(primary.effect, primary.where, shrinkage, confidence, best_hz, also=also, gaps=gaps)
+    return Verdict(primary.effect, primary.where, shrinkage, confidence, best_hz, also=also, gaps=gaps,
+                   frf_levels=level_record)
+
+
+def _contradicted(fit: CandidateFit, baseline: CandidateFit, gaps: dict, test: LevelTest) -> Verdict:
+    """``unexplained`` where the frequencies name ``fit`` and the FRF levels contradict it (module docstring, 5):
+    ``fit`` is the partial explanation, and the confidence one minus the level test's p-value.
+    """
+    partial = {"effect": fit.effect, "where": fit.where, "shrinkage": float(_shrinkage(fit, baseline)),
+               "at_bound": fit.at_bound, "frf_levels": test.record()}
+    return Verdict(UNEXPLAINED, None, 0.0, 1.0 - test.p_value, None, partial=partial, gaps=gaps,
+                   frf_levels=test.record())
 
 
 def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: dict,

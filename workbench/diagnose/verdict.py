@@ -47,6 +47,7 @@ from workbench.diagnose.combined import PairFit, PairGrid, form_pairs, pair_fits
 from workbench.diagnose.curves import Curve
 from workbench.diagnose.decision import decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
+from workbench.diagnose.frf_levels import LevelChannel, LevelTest
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import (
@@ -102,6 +103,7 @@ class Diagnosis:
     also: list[dict] = field(default_factory=list)  # further effects of a combined verdict
     gaps: dict = field(default_factory=dict)  # each channel's gap test
     discrepancy: Discrepancy = Discrepancy()
+    frf_levels: dict | None = None  # the FRF-level test of the named frequency effect (`workbench.diagnose.frf_levels`)
 
 
 def _parameter_count(curve: Curve) -> int:
@@ -249,18 +251,23 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     ranking, predictions, models, groups = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping,
                                                            shares[0])
     null = frequency_null(obs, ranking, groups)
-    verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null)
+    channel = LevelChannel(base, measured)
+
+    def frf_levels(fit: CandidateFit) -> LevelTest | None:
+        return channel.test(fit.effect, fit.where, fit.parameters)
+
+    verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null, frf_levels=frf_levels)
     pairs: list[PairFit] = []
     if verdict.effect == UNEXPLAINED and verdict.gaps.get("frequency", {}).get("gap"):
         say("pairs of effects")
         pairs = pair_fits(ranking, models, obs, baseline_hz)
-        verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs, null)
+        verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs, null, frf_levels)
     counts = {name: verdict.gaps[name]["observations"] if name in verdict.gaps else 0
               for name in ("frequency", "damping")}
     return Diagnosis(measured.modes, obs.amplitude, obs.frequency_hz, obs.frequency_se, baseline_hz,
                      verdict.best_hz, baseline_fit, ranking, regions, verdict.effect, verdict.where, verdict.shrinkage,
                      counts, time.perf_counter() - start, verdict.partial, verdict.confidence, verdict.also,
-                     verdict.gaps, obs.discrepancy)
+                     verdict.gaps, obs.discrepancy, verdict.frf_levels)
 
 
 def _ranking_entry(c: CandidateFit) -> dict:
@@ -291,7 +298,8 @@ def diagnosis_record(campaign_name: str, diagnosis: Diagnosis) -> dict:
         "ranking": [_ranking_entry(c) for c in d.ranking],
         "verdict": {"effect": d.verdict, "where": d.where, "shrinkage": d.shrinkage, "confidence": d.confidence,
                     **({"partial": d.partial} if d.verdict == UNEXPLAINED else {}),
-                    **({"also": d.also} if d.also else {})},
+                    **({"also": d.also} if d.also else {}),
+                    **({"frf_levels": d.frf_levels} if d.frf_levels is not None else {})},
         "gaps": d.gaps,
         "discrepancy": {"mode_sd": d.discrepancy.mode_sd, "common_sd": d.discrepancy.common_sd,
                         "damping_sd": d.discrepancy.damping_sd, "form_sd": FORM_SD},

@@ -29,6 +29,7 @@ __all__ = [
     "count_below",
     "model_modes",
     "mac",
+    "dominant_real",
     "DEGENERATE_GAP",
     "shared_eigenvalues",
     "modal_superposition",
@@ -277,6 +278,24 @@ def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a, b = np.atleast_2d(a.T).T, np.atleast_2d(b.T).T
     cross = np.abs(a.conj().T @ b) ** 2
     return cross / np.outer(np.einsum("ij,ij->j", a.conj(), a).real, np.einsum("ij,ij->j", b.conj(), b).real)
+
+
+def dominant_real(vectors: np.ndarray) -> np.ndarray:
+    """Real parts of complex vectors turned to their dominant phase.
+
+    Parameters
+    ----------
+    vectors : (..., n) complex.
+
+    Returns
+    -------
+    (..., n) real: ``Re(v exp(-i theta))`` with ``theta = arg(sum v^2) / 2``, the angle that puts
+    the most of the vector's energy on the real axis; a real vector is returned as it is (up to sign).
+    NaN entries stay NaN and are left out of the sum.
+    """
+    v = np.asarray(vectors, complex)
+    theta = 0.5 * np.angle(np.nansum(v * v, axis=-1, keepdims=True))
+    return np.real(v * np.exp(-1j * theta))
 
 
 def _receptance_parts(frequency_hz, natural_hz, damping_ratios, constants, dtype) -> tuple[np.ndarray, np.ndarray]:

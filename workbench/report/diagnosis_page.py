@@ -205,11 +205,29 @@ def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]
                           f"{100 * partial['shrinkage']:.1f} %{bound}"))
     else:
         lines.append(("shrinkage", "nothing to shrink: no gap beyond the scatter"))
+    frf_levels = v.get("frf_levels")
+    if frf_levels:
+        lines.append(("FRF levels", _frf_levels_text(frf_levels)))
     lines.append(("gap tests", _gaps_text(record)))
     for also in v.get("also") or ():
         lines.append(("together with", f"{also['effect']} @ {also.get('where')}, shrinkage "
                       f"{100 * also['shrinkage']:.1f} %"))
     return lines
+
+
+def _frf_levels_text(test: dict) -> str:
+    """The FRF-level channel's test in words (`workbench.diagnose.frf_levels`)."""
+    pairs = ", ".join(f"{m}: {100 * (a - 1):+.1f} / {100 * (b - 1):+.1f} %"
+                      for m, a, b in zip(test["modes"], test["measured"], test["predicted"]))
+    told = (f"measured / predicted change of each mode's modal-constant level from the nominal model's, before the "
+            f"common scale (a force calibration) is removed ({pairs}); "
+            f"chi2 {test['chi2']:.1f} on {test['dof']} degrees of freedom (nominal model {test['nominal_chi2']:.1f}), "
+            f"p = {test['p_value']:.2g}")
+    if test["contradicted"]:
+        return (f"{told}: the levels contradict the frequencies' best candidate (p < {test['level']:g}, and it fits "
+                "them worse than the nominal model), so it is only a partial explanation: another mechanism moved "
+                "the frequencies that way")
+    return f"{told}: consistent with the verdict"
 
 
 def diagnosis_files(record: dict, diagnosis: Diagnosis, synthetic: bool, source: str) -> dict[str, str]:

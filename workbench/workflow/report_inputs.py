@@ -25,12 +25,12 @@ import numpy as np
 
 from workbench.extraction.records import MeasuredModes
 from workbench.io.campaign import Campaign, load_campaign
-from workbench.model.modal import RIGID_HZ, mac
+from workbench.model.modal import RIGID_HZ, dominant_real, mac
 from workbench.model.structure import response_dofs, structure_modes, structure_of
 from workbench.tasks import Mapper
 from workbench.workflow.measured import Extraction, extract_campaign
 
-__all__ = ["ShapeComparison", "dominant_real", "shape_comparison", "usable_constants", "parse_bands",
+__all__ = ["ShapeComparison", "shape_comparison", "usable_constants", "parse_bands",
            "load_for_report", "SHAPE_UNUSABLE"]
 
 SHAPE_UNUSABLE = ("few_points", "edge_of_band")
@@ -87,24 +87,6 @@ def load_for_report(path: str | Path, bands: Sequence[tuple[float, float]] | Non
     if campaign.frf is None:
         return campaign, None, ""
     return campaign, extract_campaign(campaign, bands, mapper=mapper), ""
-
-
-def dominant_real(vectors: np.ndarray) -> np.ndarray:
-    """Real parts of complex vectors turned to their dominant phase.
-
-    Parameters
-    ----------
-    vectors : (..., n) complex.
-
-    Returns
-    -------
-    (..., n) real: ``Re(v exp(-i theta))`` with ``theta = arg(sum v^2) / 2``, the angle that puts
-    the most of the vector's energy on the real axis; a real vector is returned as it is (up to sign).
-    NaN entries stay NaN and are left out of the sum.
-    """
-    v = np.asarray(vectors, complex)
-    theta = 0.5 * np.angle(np.nansum(v * v, axis=-1, keepdims=True))
-    return np.real(v * np.exp(-1j * theta))
 
 
 @dataclass(frozen=True)
