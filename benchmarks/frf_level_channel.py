@@ -9,7 +9,8 @@ rules. Where the frequencies name one effect and the levels contradict it (`work
 verdict is ``unexplained`` with that effect in ``partial.frf_levels``: this script scores the effect the level
 test took away as `run_proving_case` would have scored it named (right: the true primary effect; wrong: an
 effect the case does not hold). It prints, per seed and pooled, the frequency names the test let through and
-those it took away, right and wrong. The levels of the test were set on seeds 10 to 12 (spent validation seeds,
+those it took away, right and wrong: names, counted over every case that gives one (faint cases too, which the
+single-effect rate sets aside; the confident-wrong rate counts them). The levels of the test were set on seeds 10 to 12 (spent validation seeds,
 the development set) and frozen before seed 14 ran; on them it is a development figure, on later seeds a
 validation one.
 """

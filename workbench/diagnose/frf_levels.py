@@ -13,7 +13,7 @@ model's constants of the paired mode at the same sensors (least squares): ``s = 
 mode's level is the mean over the tests, its standard error their scatter over the square root of their number.
 A candidate's level is the same scale of its own model's constants (the mode followed through the change,
 `track`) onto the nominal's. Modes the nominal model does not recognise at the sensors (MAC below `MIN_MAC`: a
-mode at a node, or paired with another) and modes whose level scatters by more than half itself are left out.
+mode at a node, or paired with another) and modes whose level's standard error exceeds a tenth of it are left out.
 
 **The test.** The residual of mode ``i`` is ``r_i = log s_i - log c_i - kappa``, with ``kappa`` one scale
 common to every mode (a force gauge's calibration, the density's error: fitted, not an effect), and variance
@@ -52,15 +52,15 @@ from workbench.diagnose.observations import FORM_SD
 from workbench.extraction.records import MeasuredModes
 from workbench.model.frame import Frame
 from workbench.model.matrix_model import MatrixModel
-from workbench.model.modal import dominant_real
+from workbench.model.modal import RIGID_HZ, dominant_real
 from workbench.model.structure import response_dofs, structure_modes, structure_of
-from workbench.rig.effects import STINGER_STIFFNESS, Effect, apply_effect
+from workbench.rig.effects import EFFECTS, STINGER_STIFFNESS, Effect, apply_effect
 
 __all__ = ["MIN_MAC", "LEVEL_FLOOR", "LEVEL_ALPHA", "MeasuredLevels", "LevelTest",
            "LevelChannel", "measured_levels", "sensor_constants", "track", "level_test"]
 
 MIN_MAC = 0.5  # a measured mode whose MAC with its nominal model mode is below this is not compared
-MAX_SCATTER = 0.5  # nor one whose level's standard error exceeds this share of it
+MAX_SCATTER = 0.1  # nor one whose level's standard error exceeds this share of it (noise passes 0.5 in 6 % of draws)
 LEVEL_FLOOR = 0.02  # as-built error of a nominal mode's level (module docstring)
 LEVEL_ALPHA = 0.01  # p-value below which the levels contradict a candidate that fits them worse than no effect
 
@@ -75,11 +75,13 @@ class MeasuredLevels:
         model); NaN where the mode is not compared.
     se : (n_modes,) its standard error.
     mac : (n_modes,) MAC of the mean measured shape with the nominal model's.
+    seen : (n_modes, n_sensors) the sensors each mode's level is read on.
     """
 
     level: np.ndarray
     se: np.ndarray
     mac: np.ndarray
+    seen: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -120,29 +122,33 @@ def _unit(rows: np.ndarray) -> np.ndarray:
 def measured_levels(constants: np.ndarray, nominal: np.ndarray) -> MeasuredLevels:
     """Each mode's level (module docstring) from ``constants`` (n_tests, n_modes, n_sensors) complex, 1/kg, against
     ``nominal`` (n_modes, n_sensors), the nominal model's constants of the paired modes, 1/kg.
+
+    A mode is read on the sensors that at least half of its tests saw, from the tests that saw all of them (each
+    test then scaled on the same sensors as the prediction). The tests are signed alike by the first principal
+    direction of their real constants, not by the nominal shape: signed by the nominal, pure noise would average
+    into the nominal shape and pass as a mode. A mode the sensors do not see then has signed scales about zero,
+    and its level's standard error rules it out (`MAX_SCATTER`).
     """
     real = dominant_real(constants)
-    n_modes = real.shape[1]
+    n_modes, n_sensors = real.shape[1:]
     level, se, mac = np.full(n_modes, np.nan), np.full(n_modes, np.nan), np.full(n_modes, np.nan)
+    seen = np.zeros((n_modes, n_sensors), bool)
     for k in range(n_modes):
-        scales, signed = [], []
-        for x in real[:, k, :]:
-            seen = np.isfinite(x)
-            a = nominal[k, seen]
-            if seen.sum() < 2 or a @ a == 0.0:
-                continue
-            scales.append(abs(x[seen] @ a) / (a @ a))
-            signed.append(np.where(seen, x * np.sign(x[seen] @ a or 1.0), np.nan))
-        if len(scales) < 2:
+        x = real[:, k, :]
+        mask = np.isfinite(x).sum(axis=0) * 2 >= x.shape[0]
+        x = x[np.isfinite(x[:, mask]).all(axis=1)][:, mask]
+        a = nominal[k, mask]
+        if mask.sum() < 2 or x.shape[0] < 2 or a @ a == 0.0:
             continue
-        mean_shape = np.nanmean(np.array(signed), axis=0)
-        seen = np.isfinite(mean_shape)
-        if seen.sum() < 2:
-            continue
-        mac[k] = float((_unit(mean_shape[seen]) @ _unit(nominal[k, seen])) ** 2)
-        s = np.array(scales)
-        level[k], se[k] = s.mean(), s.std(ddof=1) / np.sqrt(s.size)
-    return MeasuredLevels(level, se, mac)
+        direction = np.linalg.svd(x, full_matrices=False)[2][0]
+        signs = np.sign(x @ direction)
+        signed = x * np.where(signs == 0, 1.0, signs)[:, None]
+        scales = signed @ a / (a @ a)
+        mean = float(scales.mean())
+        mac[k] = float((_unit(signed.mean(axis=0)) @ _unit(a)) ** 2)
+        level[k], se[k] = abs(mean), float(scales.std(ddof=1) / np.sqrt(scales.size))
+        seen[k] = mask
+    return MeasuredLevels(level, se, mac, seen)
 
 
 def sensor_constants(frame: Frame | MatrixModel, sensors: tuple[str, ...], count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -164,7 +170,9 @@ def track(nominal: np.ndarray, nominal_hz: np.ndarray, changed: np.ndarray, chan
     then pairs each with the other's constants.
     """
     a, b = _unit(nominal), _unit(changed)
-    cost = 1.0 - (a @ b.T) ** 2 + np.abs(np.log(changed_hz[None, :] / nominal_hz[:, None]))
+    # a free frame's rigid modes sit at 0 Hz: their ratios are read at RIGID_HZ
+    ratio = np.maximum(changed_hz, RIGID_HZ)[None, :] / np.maximum(nominal_hz, RIGID_HZ)[:, None]
+    cost = 1.0 - (a @ b.T) ** 2 + np.abs(np.log(ratio))
     rows, cols = linear_sum_assignment(cost)
     out = np.zeros(nominal.shape[0], int)
     out[rows] = cols
@@ -181,8 +189,11 @@ def level_test(measured: MeasuredLevels, nominal: np.ndarray, candidate: np.ndar
             & (measured.se < MAX_SCATTER * np.where(np.isfinite(measured.level), measured.level, np.inf)))
     if keep.sum() < 2:
         return None
-    a0, ac = nominal[keep], candidate[keep]
+    seen = measured.seen[keep]  # each mode's prediction on the sensors its level was read on
+    a0, ac = np.where(seen, nominal[keep], 0.0), np.where(seen, candidate[keep], 0.0)
     predicted = np.abs(np.einsum("ij,ij->i", ac, a0)) / np.einsum("ij,ij->i", a0, a0)
+    if not np.all(predicted > 0.0):  # the candidate's mode is orthogonal to the nominal one at the sensors
+        return None
     log_measured = np.log(measured.level[keep])
     noise = (measured.se[keep] / measured.level[keep]) ** 2 + LEVEL_FLOOR**2
 
@@ -207,7 +218,9 @@ class LevelChannel:
         self.base = base
         self.available = False
         constants = measured.modal_constants
-        if not isinstance(base.frame, Frame) or constants is None or constants.shape[0] < 2:
+        frame = base.frame
+        if (not isinstance(frame, Frame) or frame.excitation is None or not frame.sensors or constants is None
+                or constants.shape[0] < 2):
             return
         names = response_dofs(base.model)[2]
         self.sensors = measured.sensors or names
@@ -228,8 +241,9 @@ class LevelChannel:
         """
         if not self.available or not isinstance(self.base.frame, Frame) or effect == STINGER_STIFFNESS.name:
             return None
-        numbers = {k: v for k, v in parameters.items() if not isinstance(v, str)}
-        changed = apply_effect(self.base.frame, Effect(effect, where, numbers))
+        kind = EFFECTS[effect]  # its own keys only: the fit's record adds others (a two-dof form's label)
+        changed = apply_effect(self.base.frame, Effect(effect, where, {k: v for k, v in parameters.items()
+                                                                       if k in kind.keys}))
         if changed is self.base.frame:
             return None
         constants, frequency_hz = sensor_constants(changed, self.sensors, self.count + 2)

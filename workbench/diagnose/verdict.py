@@ -258,7 +258,8 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
 
     verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null, frf_levels=frf_levels)
     pairs: list[PairFit] = []
-    if verdict.effect == UNEXPLAINED and verdict.gaps.get("frequency", {}).get("gap"):
+    contradicted = bool((verdict.frf_levels or {}).get("contradicted"))  # a pair would name the same single again
+    if verdict.effect == UNEXPLAINED and verdict.gaps.get("frequency", {}).get("gap") and not contradicted:
         say("pairs of effects")
         pairs = pair_fits(ranking, models, obs, baseline_hz)
         verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs, null, frf_levels)

@@ -227,6 +227,9 @@ def _frf_levels_text(test: dict) -> str:
         return (f"{told}: the levels contradict the frequencies' best candidate (p < {test['level']:g}, and it fits "
                 "them worse than the nominal model), so it is only a partial explanation: another mechanism moved "
                 "the frequencies that way")
+    if test["p_value"] < test["level"]:
+        return (f"{told}: the levels miss the candidate's model too, but less than the nominal model's, so they do not "
+                "contradict it: something besides it moves the levels")
     return f"{told}: consistent with the verdict"
 
 
