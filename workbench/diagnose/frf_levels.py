@@ -53,7 +53,7 @@ from workbench.extraction.records import MeasuredModes
 from workbench.model.frame import Frame
 from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import RIGID_HZ, dominant_real
-from workbench.model.structure import response_dofs, structure_modes, structure_of
+from workbench.model.structure import receptance_constants, response_dofs, structure_modes, structure_of
 from workbench.rig.effects import EFFECTS, STINGER_STIFFNESS, Effect, apply_effect
 
 __all__ = ["MIN_MAC", "LEVEL_FLOOR", "LEVEL_ALPHA", "MeasuredLevels", "LevelTest",
@@ -156,10 +156,8 @@ def sensor_constants(frame: Frame | MatrixModel, sensors: tuple[str, ...], count
     n_sensors), 1/kg, and their frequencies (count,), Hz.
     """
     model = structure_of(frame)
-    rows, excitation, names = response_dofs(model)
-    rows = rows[[names.index(s) for s in sensors]]
     modes = structure_modes(model, count)
-    return (modes.shapes[rows] * modes.shapes[excitation][None, :]).T, modes.frequency_hz
+    return receptance_constants(model, modes.shapes, sensors), modes.frequency_hz
 
 
 def track(nominal: np.ndarray, nominal_hz: np.ndarray, changed: np.ndarray, changed_hz: np.ndarray) -> np.ndarray:

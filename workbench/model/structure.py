@@ -12,6 +12,8 @@ Carlo, the FRF band and the identification call them and never ask which kind th
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from workbench.model.assembly import Model, assemble
@@ -22,7 +24,7 @@ from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import FRFSet, Modes, modal_frf, model_modes, solve_modes
 
 __all__ = ["Structure", "structure_of", "structure_modes", "structure_energies", "structure_at_moduli",
-           "sensor_dofs", "excitation_dof", "response_dofs", "structure_frf"]
+           "sensor_dofs", "excitation_dof", "response_dofs", "receptance_constants", "structure_frf"]
 
 Structure = Model | MatrixModel
 
@@ -103,6 +105,24 @@ def response_dofs(model: Structure) -> tuple[np.ndarray, int, tuple[str, ...]]:
     sensors = sensor_dofs(model)
     names = tuple(s.name for s in (model.frame.sensors if isinstance(model, Model) else model.sensors))
     return sensors, excitation, names
+
+
+def receptance_constants(model: Structure, shapes: np.ndarray, sensors: Sequence[str] = ()) -> np.ndarray:
+    """Receptance modal constants ``phi(s) phi(excitation)`` (n_modes, n_sensors), 1/kg, of the mass-normalised
+    ``shapes`` (n_free_dofs, n_modes) at ``sensors`` (names, in that order; the model's own when empty).
+
+    Raises
+    ------
+    ValueError
+        As `response_dofs`; a name that is not one of the model's sensors.
+    """
+    rows, excitation, names = response_dofs(model)
+    if sensors:
+        unknown = [s for s in sensors if s not in names]
+        if unknown:
+            raise ValueError(f"{model.source}: sensors: {', '.join(unknown)} not among the model's {', '.join(names)}")
+        rows = rows[[names.index(s) for s in sensors]]
+    return (shapes[rows] * shapes[excitation][None, :]).T
 
 
 def structure_frf(model: Structure, modes: Modes, frequency_hz: np.ndarray, quantity: str = "accelerance",

@@ -26,7 +26,7 @@ import numpy as np
 from workbench.extraction.records import MeasuredModes
 from workbench.io.campaign import Campaign, load_campaign
 from workbench.model.modal import RIGID_HZ, dominant_real, mac
-from workbench.model.structure import response_dofs, structure_modes, structure_of
+from workbench.model.structure import receptance_constants, structure_modes, structure_of
 from workbench.tasks import Mapper
 from workbench.workflow.measured import Extraction, extract_campaign
 
@@ -169,13 +169,10 @@ def shape_comparison(campaign: Campaign, data: MeasuredModes, sensors: Sequence[
     if constants is None or campaign.frame.excitation is None or len(sensors) < 2 or constants.shape[2] != len(sensors):
         return None
     model = structure_of(campaign.frame)
-    all_rows, excitation, names = response_dofs(model)
-    rows = all_rows[[names.index(s) for s in sensors]]
     n_measured = constants.shape[1]
     solved = structure_modes(model, min(n_measured + extra + 3, model.size - 1))
     elastic = np.flatnonzero(solved.frequency_hz >= RIGID_HZ)[: n_measured + extra]
-    shapes = solved.shapes[:, elastic]
-    model_constants = (shapes[rows] * shapes[excitation][None, :]).T  # (n_model, n_sensors)
+    model_constants = receptance_constants(model, solved.shapes[:, elastic], sensors)  # (n_model, n_sensors)
     paired = np.minimum(np.asarray(data.modes, int) - 1, elastic.size - 1)
     measured, counts = [], []
     for k in range(n_measured):
