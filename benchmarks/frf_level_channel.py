@@ -1,7 +1,7 @@
 """What the FRF-level channel takes away: the right and the wrong names the modal constants' levels contradict.
 
 Run from the repository root: ``python benchmarks/frf_level_channel.py [--seeds 10 11 12] [--cases 200]
-[--workers 2]`` (about 8 minutes a seed of 200 cases on 2 cores).
+[--workers 2]`` (about 11 minutes a seed of 200 cases on 2 cores).
 
 Each case of each seed's validation mix (`workbench.workflow.proving_validation.validation_specs`, the cases
 `workbench validate-diagnosis` runs) is simulated by the proving ground and diagnosed blind with the current
