@@ -24,7 +24,7 @@ from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.frame import Frame
 from workbench.model.structure import response_dofs, structure_of
 from workbench.proving.cases import case_campaign
-from workbench.rig.effects import NONE, UNEXPLAINED, Effect, apply_effect
+from workbench.rig.effects import EFFECTS, NONE, UNEXPLAINED, apply_effect
 from workbench.workflow.measured import measured_modes
 from workbench.workflow.proving_validation import validation_specs
 from workbench.workflow.report_inputs import ShapeComparison, shape_comparison
@@ -60,9 +60,8 @@ def main() -> None:
             continue
         entry = next(r for r in diagnosis_record(campaign.name, result)["ranking"]
                      if (r["effect"], r["where"]) == (result.verdict, result.where))
-        parameters = {k: v for k, v in entry["parameters"].items() if not isinstance(v, str)}
         assert isinstance(campaign.frame, Frame)  # the proving ground writes frame files
-        named = apply_effect(campaign.frame, Effect(result.verdict, result.where, parameters))
+        named = apply_effect(campaign.frame, EFFECTS[result.verdict].from_fit(result.where, entry["parameters"]))
         candidate = shape_comparison(replace(campaign, frame=named), measured, sensors)
         if candidate is not None:
             print("  1 - MAC, named candidate:", _paired(candidate))

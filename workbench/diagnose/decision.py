@@ -362,10 +362,10 @@ def _contradicted(fit: CandidateFit, baseline: CandidateFit, gaps: dict, test: L
     """``unexplained`` where the frequencies name ``fit`` and the FRF levels contradict it (module docstring, 5):
     ``fit`` is the partial explanation, and the confidence one minus the level test's p-value.
     """
+    record = test.record()
     partial = {"effect": fit.effect, "where": fit.where, "shrinkage": float(_shrinkage(fit, baseline)),
-               "at_bound": fit.at_bound, "frf_levels": test.record()}
-    return Verdict(UNEXPLAINED, None, 0.0, 1.0 - test.p_value, None, partial=partial, gaps=gaps,
-                   frf_levels=test.record())
+               "at_bound": fit.at_bound, "frf_levels": record}
+    return Verdict(UNEXPLAINED, None, 0.0, 1.0 - test.p_value, None, partial=partial, gaps=gaps, frf_levels=record)
 
 
 def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: dict,

@@ -56,7 +56,7 @@ from workbench.model.frame import Frame
 from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import RIGID_HZ, dominant_real
 from workbench.model.structure import receptance_constants, response_dofs, structure_modes, structure_of
-from workbench.rig.effects import EFFECTS, STINGER_STIFFNESS, Effect, apply_effect
+from workbench.rig.effects import EFFECTS, STINGER_STIFFNESS, apply_effect
 
 __all__ = ["MIN_MAC", "LEVEL_FLOOR", "LEVEL_ALPHA", "MeasuredLevels", "LevelTest",
            "LevelChannel", "measured_levels", "sensor_constants", "track", "level_test"]
@@ -241,9 +241,7 @@ class LevelChannel:
         """
         if not self.available or not isinstance(self.base.frame, Frame) or effect == STINGER_STIFFNESS.name:
             return None
-        kind = EFFECTS[effect]  # its own keys only: the fit's record adds others (a two-dof form's label)
-        changed = apply_effect(self.base.frame, Effect(effect, where, {k: v for k, v in parameters.items()
-                                                                       if k in kind.keys}))
+        changed = apply_effect(self.base.frame, EFFECTS[effect].from_fit(where, parameters))
         if changed is self.base.frame:
             return None
         constants, frequency_hz = sensor_constants(changed, self.sensors, self.count + 2)

@@ -83,6 +83,12 @@ class EffectKind:
             raise ValueError(f"{self.name}: unknown parameters {sorted(unknown)}; expected some of {list(self.keys)}")
         return Effect(self.name, where, dict(parameters))
 
+    def from_fit(self, where: str | None, parameters: dict[str, Any]) -> Effect:
+        """The `Effect` a diagnosis candidate's fitted ``parameters`` describe: its own keys only (a fit's record
+        adds others, such as a two-dof form's label or a softening's slope).
+        """
+        return Effect(self.name, where, {k: v for k, v in parameters.items() if k in self.keys})
+
 
 NONE = EffectKind("none", None, None, "", level="none", candidate=False,
                   meaning="no gap beyond measurement scatter: the nominal model already fits")
