@@ -85,6 +85,15 @@ def test_matrix_effects_refuse_what_a_matrix_model_cannot_hold(bracket):
         apply_matrix_effect(model, Effect("stinger_stiffness", f"node {model.sensors[3].node}", {"stiffness": 1e5}))
 
 
+def test_a_matrix_models_drive_takes_its_moving_mass_on_the_excitation_dof_only(bracket):
+    model, _, _ = bracket
+    node = f"node {int(model.dofs.nodes[model.excitation])}"
+    changed = apply_matrix_effect(model, Effect("stinger_stiffness", node, {"moving_mass": 0.01}))
+    added = sp.csr_matrix(changed.mass - model.mass)
+    assert added.nnz == 1 and added[model.excitation, model.excitation] == pytest.approx(0.01)
+    assert (changed.stiffness_rest - model.stiffness_rest).count_nonzero() == 0
+
+
 @pytest.mark.slow
 def test_diagnose_runs_on_a_matrix_campaign(bracket, tmp_path):
     model, found, out = bracket

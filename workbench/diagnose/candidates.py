@@ -3,11 +3,11 @@
 Every effect of `workbench.rig.effects.EFFECTS` that is a candidate, at each place of the kind it
 names, gets a grid of its parameter (`workbench.diagnose.curves.sweep`): a support's rotational
 stiffness (clamped supports from a hundredth of the beam's EI / L up), the stinger's stiffness
-(around the drive point's static stiffness), each member's axial force (-0.6 to 2 Euler loads carried
-through the frame, -1.5 to 2 locked in between the member's own ends), each joint's modulus factor
-(0.1 to 10, and every joint at once), the shear coefficient (Euler-Bernoulli frames), and an added
-mass. Amplitude softening and joint damping (hysteretic or viscous) reuse the joint curves and the
-energy shares (`workbench.diagnose.verdict`).
+(around the drive point's static stiffness) and the mass that moves with the drive, each member's
+axial force (-0.6 to 2 Euler loads carried through the frame, -1.5 to 2 locked in between the
+member's own ends), each joint's modulus factor (0.1 to 10, and every joint at once), the shear
+coefficient (Euler-Bernoulli frames), and an added mass. Amplitude softening and joint damping
+(hysteretic or viscous) reuse the joint curves and the energy shares (`workbench.diagnose.verdict`).
 
 **Mass position.** A first-order screen (`workbench.diagnose.localise.explained` of each mesh
 node's translation) picks the few best places; around each, nearby nodes are fitted on a coarse
@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment, minimize_scalar
 from scipy.sparse.linalg import splu
 
@@ -41,7 +42,7 @@ from workbench.rig.effects import (
     SUPPORT_COMPLIANCE,
 )
 
-__all__ = ["GRID_POINTS", "frame_curves", "joint_curves", "members_at"]
+__all__ = ["GRID_POINTS", "drive_curves", "frame_curves", "joint_curves", "members_at"]
 
 GRID_POINTS = 33
 RITZ_EXTRA = 20  # Ritz basis of the mass screen: this many modes beyond the measured ones
@@ -83,17 +84,35 @@ def _support_curves(base: Baseline) -> list[Curve | None]:
     return curves
 
 
+def drive_curves(base: Baseline, stiffness: sp.spmatrix, dof: int, where: str, fixed: dict,
+                 total_mass: float) -> list[Curve | None]:
+    """The shaker's drive in its two forms at the drive point, each on the excitation's dof only (frames and
+    matrix models).
+
+    Its spring (the stinger's axial stiffness in series with the shaker's suspension), from a ten-thousandth to
+    ten times the drive point's static stiffness (``stiffness`` the model's, ``dof`` the excitation's index in
+    it); and the mass that moves with the drive point (the armature and the stinger, guided across), which shows
+    where the reference force is measured at the shaker, from 3e-4 times ``total_mass`` (kg) to all of it. The
+    drive point's dynamic stiffness ``k - omega^2 m`` is both at once (`workbench.diagnose.combined.form_pairs`):
+    a soft suspension leaves the mass alone, which lowers the frequencies as an added mass does, but on the
+    drive's direction only.
+    """
+    unit = np.zeros(stiffness.shape[0])
+    unit[dof] = 1.0
+    k_static = 1.0 / float(splu(stiffness.tocsc()).solve(unit)[dof])
+    springs = k_static * np.logspace(-4, 1, GRID_POINTS)
+    masses = total_mass * np.logspace(-3.5, 0, GRID_POINTS)
+    return [sweep(base, STINGER_STIFFNESS, where, springs, 0, True, fixed),
+            sweep(base, STINGER_STIFFNESS, where, masses, 0, True, fixed, swept="moving_mass")]
+
+
 def _stinger_curves(base: Baseline) -> list[Curve | None]:
     frame, model = base.planar
     excitation = frame.excitation
     if excitation is None:
         return []
-    d = model.dof(excitation.point, excitation.dof)
-    unit = np.zeros(model.size)
-    unit[d] = 1.0
-    k_static = 1.0 / float(splu(model.stiffness().tocsc()).solve(unit)[d])
-    values = k_static * np.logspace(-4, 1, GRID_POINTS)
-    return [sweep(base, STINGER_STIFFNESS, excitation.point, values, 0, True, {"dof": excitation.dof})]
+    return drive_curves(base, model.stiffness(), model.dof(excitation.point, excitation.dof), excitation.point,
+                        {"dof": excitation.dof}, float(model.mass.diagonal()[0::3].sum()))
 
 
 def _axial_curves(base: Baseline) -> list[Curve | None]:

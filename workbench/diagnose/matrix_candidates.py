@@ -5,7 +5,8 @@ axial prestress are not candidates. What remains, each on a grid of its paramete
 (`workbench.diagnose.curves.sweep`, the model changed by `workbench.rig.effects.apply_matrix_effect`):
 
 - each joint's modulus factor (0.1 to 10), and every joint at once;
-- a spring at the excitation's dof (the stinger), around the drive point's static stiffness;
+- the shaker's drive at the excitation's dof: its spring, around the drive point's static stiffness, and the
+  mass moving with it, each alone and both at once (`workbench.diagnose.candidates.drive_curves`);
 - an added mass (on a node's translations) at the few nodes where a mass best explains the
   residual with the modes held fixed (`_mass_screen`), 5 cm apart when the dof table gives
   coordinates; a node is named ``"node N"``.
@@ -16,15 +17,14 @@ Amplitude softening and joint damping reuse the joint curves and the energy shar
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse.linalg import splu
 
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.candidates import GRID_POINTS, joint_curves
+from workbench.diagnose.candidates import GRID_POINTS, drive_curves, joint_curves
 from workbench.diagnose.curves import Curve, sweep
 from workbench.diagnose.localise import node_translation
 from workbench.diagnose.observations import Observations
 from workbench.model.matrix_model import MatrixModel
-from workbench.rig.effects import ADDED_MASS, STINGER_STIFFNESS, TRANSLATIONS, node_name
+from workbench.rig.effects import ADDED_MASS, TRANSLATIONS, node_name
 
 __all__ = ["matrix_curves"]
 
@@ -35,12 +35,8 @@ MASS_SPACING_M = 0.05  # between them, when the dof table has coordinates
 def _stinger_curves(base: Baseline, model: MatrixModel) -> list[Curve | None]:
     if model.excitation is None:
         return []
-    d = model.excitation
-    unit = np.zeros(model.size)
-    unit[d] = 1.0
-    k_static = 1.0 / float(splu(model.stiffness().tocsc()).solve(unit)[d])
-    values = k_static * np.logspace(-4, 1, GRID_POINTS)
-    return [sweep(base, STINGER_STIFFNESS, node_name(model.dofs.nodes[d]), values, 0, True)]
+    return drive_curves(base, model.stiffness(), model.excitation, node_name(model.dofs.nodes[model.excitation]), {},
+                        _translating_mass(model))
 
 
 def _translating_mass(model: MatrixModel) -> float:

@@ -369,6 +369,7 @@ def assemble(frame: Frame) -> Model:
                 diag_k[3 * node + i] += value
     for spring in frame.springs:
         diag_k[3 * mesh.point_node[spring.point] + DOF_NAMES.index(spring.dof)] += spring.stiffness
+        diag_m[3 * mesh.point_node[spring.point] + DOF_NAMES.index(spring.dof)] += spring.mass
     for pm in frame.masses:
         node = mesh.point_node[pm.point]
         diag_m[3 * node: 3 * node + 3] += (pm.mass, pm.mass, pm.rotary_inertia)

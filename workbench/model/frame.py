@@ -128,11 +128,17 @@ class PointMass:
 
 @dataclass(frozen=True)
 class GroundSpring:
-    """A spring from one dof of a point to the ground."""
+    """A spring from one dof of a point to the ground, and a mass that moves with that dof only.
+
+    The pair is a shaker's drive on the structure where the reference force is measured at the shaker: its
+    suspension (the spring) and its armature and stinger (the mass, guided across the drive direction), a
+    dynamic stiffness ``k - omega^2 m`` at the drive point. A frame file gives the spring only.
+    """
 
     point: str
     dof: str
     stiffness: float  # N/m or N.m/rad
+    mass: float = 0.0  # kg (kg.m2 on rz) moving with the dof
 
 
 @dataclass(frozen=True)

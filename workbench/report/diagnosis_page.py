@@ -101,7 +101,7 @@ def _unit(effect: str, key: str) -> str:
     if key in (kind.parameter, kind.fitted_parameter):
         return kind.unit
     return {"position": "fraction of the member's length", "rotary_inertia": "kg.m2", "ux": "N/m", "uy": "N/m",
-            "reference_hz": "Hz",
+            "reference_hz": "Hz", "moving_mass": "kg",
             "rz": "N.m/rad", "poisson_ratio": "1", "ps_n": "N"}.get(key, "")
 
 

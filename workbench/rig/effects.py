@@ -98,7 +98,7 @@ ADDED_MASS = EffectKind("added_mass", "point or member", "mass", "kg", ("rotary_
                         meaning="unmodelled mass (sensor, bracket, bolt)")
 SHEAR_DEFORMATION = EffectKind("shear_deformation", None, "shear_coefficient", "1", ("poisson_ratio",),
                                meaning="shear and rotary inertia of thick members (Timoshenko)")
-STINGER_STIFFNESS = EffectKind("stinger_stiffness", "excitation point", "stiffness", "N/m", ("dof",),
+STINGER_STIFFNESS = EffectKind("stinger_stiffness", "excitation point", "stiffness", "N/m", ("dof", "moving_mass"),
                                meaning="the shaker's stinger adds a spring at the drive point")
 AXIAL_PRESTRESS = EffectKind("axial_prestress", "member", "axial_force", "N", ("reaction",),
                              meaning="locked-in axial force in a member (tightening sequence), geometric stiffness")
@@ -131,7 +131,9 @@ class Effect:
       on a member at ``position`` (fraction of its length from its start);
     - shear_deformation: ``{"shear_coefficient": k}`` optional (Timoshenko, default the file's, else
       5/6); ``poisson_ratio`` (default 0.3) for materials whose file gives none;
-    - stinger_stiffness: ``{"stiffness": N/m, "dof": the excitation dof}`` added at the point;
+    - stinger_stiffness: ``{"stiffness": N/m, "dof": the excitation dof}`` added at the point, and
+      ``"moving_mass"`` (kg, default 0) moving with that dof only: the shaker's armature and stinger where the
+      reference force is measured at the shaker (`workbench.model.frame.GroundSpring`); either may be left out;
     - axial_prestress: ``{"axial_force": N}`` (tension positive) added to the member's, carried through the
       frame; with ``"reaction": "chord"`` locked in between the member's own ends (``Member.locked_force``);
     - joint_stiffness_shift: ``{"factor": f}`` times the joint's mean modulus (every joint's when
@@ -214,7 +216,8 @@ def _stinger_stiffness(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
     dof = p.get("dof", frame.excitation.dof if frame.excitation else "ux")
     if w not in frame.points:
         raise ValueError(f"stinger_stiffness: {w!r} is not a point")
-    return replace(frame, springs=frame.springs + (GroundSpring(w, dof, float(p["stiffness"])),))
+    spring = GroundSpring(w, dof, float(p.get("stiffness", 0.0)), float(p.get("moving_mass", 0.0)))
+    return replace(frame, springs=frame.springs + (spring,))
 
 
 def _axial_prestress(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
@@ -306,7 +309,8 @@ def apply_matrix_effect(model: MatrixModel, effect: Effect | None) -> MatrixMode
 
     ``where``: a joint's name (None: every joint) for ``joint_stiffness_shift``; ``"node N"`` for
     ``added_mass`` (``mass`` kg on each translation the node has) and ``stinger_stiffness``
-    (``stiffness`` N/m on the excitation's dof, which must be at that node).
+    (``stiffness`` N/m and ``moving_mass`` kg on the excitation's dof, which must be at that node; either may
+    be left out).
     """
     if effect is None or effect.type == NONE.name:
         return model
@@ -329,5 +333,7 @@ def apply_matrix_effect(model: MatrixModel, effect: Effect | None) -> MatrixMode
         return replace(model, mass=(model.mass + extra).tocsr())
     if model.excitation is None or int(model.dofs.nodes[model.excitation]) != node:
         raise ValueError(f"{model.source}: stinger_stiffness at {effect.where!r}, which is not the excitation")
-    spring = sp.csr_matrix(([float(p["stiffness"])], ([model.excitation], [model.excitation])), shape=model.mass.shape)
-    return replace(model, stiffness_rest=(model.stiffness_rest + spring).tocsr())
+    at = ([model.excitation], [model.excitation])
+    spring = sp.csr_matrix(([float(p.get("stiffness", 0.0))], at), shape=model.mass.shape)
+    moving = sp.csr_matrix(([float(p.get("moving_mass", 0.0))], at), shape=model.mass.shape)
+    return replace(model, stiffness_rest=(model.stiffness_rest + spring).tocsr(), mass=(model.mass + moving).tocsr())
