@@ -13,11 +13,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from workbench.diagnose.verdict import diagnose
 from workbench.extraction.records import MeasuredModes
 from workbench.model.assembly import assemble
-from workbench.model.frame import Frame
+from workbench.model.frame import DOF_NAMES, Frame
 from workbench.model.frame_file import frame_to_toml
 from workbench.model.modal import model_modes
 from workbench.proving.article import Article
@@ -44,13 +45,26 @@ def test_a_moving_mass_takes_the_share_rayleigh_says_and_less_than_a_point_mass(
     model = assemble(frame)
     phi = model.expand(model_modes(model, 1).shapes)[:, 0]
     node = model.mesh.point_node[drive.point]
+    along, across = 3 * node + DOF_NAMES.index(drive.dof), 3 * node + 1 - DOF_NAMES.index(drive.dof)
     mass = 1e-3
-    moving = _drive_share(frame, apply_effect(frame, STINGER_STIFFNESS.effect(drive.point, dof=drive.dof,
-                                                                              moving_mass=mass)))
-    assert moving == pytest.approx(mass * phi[3 * node] ** 2, rel=0.01)
+    changed = apply_effect(frame, STINGER_STIFFNESS.effect(drive.point, dof=drive.dof, moving_mass=mass))
+    moving = _drive_share(frame, changed)
+    assert moving == pytest.approx(mass * phi[along] ** 2, rel=0.01)
     point = _drive_share(frame, apply_effect(frame, ADDED_MASS.effect(drive.point, mass=mass)))
-    assert point == pytest.approx(mass * (phi[3 * node] ** 2 + phi[3 * node + 1] ** 2), rel=0.01)
+    assert point == pytest.approx(mass * (phi[along] ** 2 + phi[across] ** 2), rel=0.01)
     assert point >= moving > 0.0
+    # the fundamental hardly moves the drive point across the drive: the mass matrix says it is on one dof only
+    added = sp.coo_matrix(assemble(changed).mass - model.mass)
+    added.eliminate_zeros()
+    assert added.nnz == 1 and added.data[0] == pytest.approx(mass)
+    assert added.row[0] == added.col[0] == model.dof(drive.point, drive.dof)
+
+
+def test_a_drive_with_neither_spring_nor_mass_is_refused():
+    frame = proving_frame("two_bolt")
+    assert frame.excitation is not None
+    with pytest.raises(ValueError, match="stiffness, its moving_mass or both"):
+        apply_effect(frame, STINGER_STIFFNESS.effect(frame.excitation.point, dof="ux"))
 
 
 def test_a_frame_file_has_no_key_for_a_moving_mass():
@@ -66,8 +80,8 @@ def test_a_frame_file_has_no_key_for_a_moving_mass():
 @pytest.mark.parametrize("frame_name", ["two_bolt", "four_bolt"])
 def test_the_diagnosis_names_a_stinger_whose_rod_and_armature_load_the_drive(frame_name):
     """The proving ground's stinger on a soft suspension (100 N/m) with a small modal shaker's armature (20 g):
-    the steel rod and the armature move with the drive point and lower the frequencies (by 5 % at most) as a mass
-    there would, on the drive's direction only. The diagnosis names the stinger at the drive point, its moving
+    the steel rod and the armature move with the drive point and lower the frequencies as a mass there would, on
+    the drive's direction only. The diagnosis names the stinger at the drive point in its two forms, its moving
     mass within 5 % of the rod's and the armature's.
     """
     armature = 0.02
@@ -87,5 +101,6 @@ def test_the_diagnosis_names_a_stinger_whose_rod_and_armature_load_the_drive(fra
     result = diagnose(frame, MeasuredModes(exact[None, :] * (1 + 2e-4 * rng.standard_normal((6, 8)))))
     assert frame.excitation is not None
     assert (result.verdict, result.where) == (STINGER_STIFFNESS.name, frame.excitation.point)
-    fitted = next(c.parameters for c in result.ranking if c.effect == result.verdict)
-    assert fitted["moving_mass"] == pytest.approx(rod + armature, rel=0.05)
+    named = next(c for c in result.ranking if c.effect == result.verdict)
+    assert "moving_mass" in named.form and "stiffness" in named.form  # a candidate only with its spring
+    assert named.parameters["moving_mass"] == pytest.approx(rod + armature, rel=0.05)

@@ -169,9 +169,10 @@ def _law_of(k: int, scatter_dof: float | None) -> Callable[[np.ndarray], np.ndar
 def frequency_null(obs: Observations, ranking: list[CandidateFit],
                    models: dict[tuple[str, str | None, str], tuple[Frequencies, ...]]) -> NullFamily:
     """The frequency channel's `workbench.diagnose.family.NullFamily`: each frequency candidate of ``ranking``
-    by its curves in ``models`` (`CandidateFit.key`; one curve, or two for a support's two-dof form), read with
-    its own law (`_law`); a candidate without curves, and every added mass and softening (`UNION_BOUND`), adds
-    its own p-value instead (the union bound: `workbench.diagnose.family` says why).
+    by its curves in ``models`` (`CandidateFit.key`; one curve, or two for an effect's two-form candidate: a
+    support's two dofs, the drive's spring and moving mass), read with its own law (`_law`); a candidate without
+    curves, and every added mass and softening (`UNION_BOUND`), adds its own p-value instead (the union bound:
+    `workbench.diagnose.family` says why).
     """
     channel = [c for c in ranking if c.channel == "frequency"]
     drawn = [models.get(c.key, ()) if c.effect not in UNION_BOUND else () for c in channel]

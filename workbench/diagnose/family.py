@@ -11,11 +11,11 @@ seed 12, case 13) whose two-dof form lowered the chi-square by 15.4, p = 4.6e-4 
 candidates, and ``none``; read against the family's own law below, 0.0098.
 
 Here the least p-value is read against its own distribution under no effect. About the no-effect point each
-candidate changes the means along its tangent ``g`` (one column, or two for a support giving way in two dofs),
-and, whitened by the covariance the chi-square uses (`workbench.diagnose.observations.Observations.joint_covariance`),
-a residual ``z ~ N(0, I)`` lets it lower its chi-square by ``(g.z)^2 / |g|^2`` (``max(0, -g.z)^2 / |g|^2`` where
-the effect can act one way only: a mass is added, a support softens; the best non-negative pair for two
-columns).
+candidate changes the means along its tangent ``g`` (one column, or two for a support giving way in two dofs, or
+the drive's spring and moving mass), and, whitened by the covariance the chi-square uses
+(`workbench.diagnose.observations.Observations.joint_covariance`), a residual ``z ~ N(0, I)`` lets it lower its
+chi-square by ``(g.z)^2 / |g|^2`` (``max(0, -g.z)^2 / |g|^2`` where the effect can act one way only: a mass is
+added, a support softens; the best non-negative pair for two columns).
 Each simulated drop is read with the candidate's own law, as the measured drop is; the family-wise p-value of
 a measured least p-value ``p`` is the share of `NULL_DRAWS` draws whose least p-value is ``p`` or below. It is
 exact for candidates linear about no effect under the stated covariance, and never above Bonferroni's bound

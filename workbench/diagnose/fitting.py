@@ -86,8 +86,9 @@ class CandidateFit:
     @property
     def extra_charge(self) -> float:
         """``ln N`` per parameter beyond the first (`heldout_score`): an added mass's place and position, and
-        a two-form support's second stiffness, which leave-one-out refits but which is charged as a prior against
-        the richer form (`workbench.diagnose.combined.form_pairs`).
+        a two-form candidate's second parameter (a support's second stiffness, the drive's moving mass), which
+        leave-one-out refits but which is charged as a prior against the richer form
+        (`workbench.diagnose.combined.form_pairs`).
         """
         return max(self.parameter_count - 1, 0) * math.log(max(self.observations, 2))
 

@@ -152,7 +152,7 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
                         dict[tuple[str, str | None, str], tuple[Frequencies, ...]]]:
     """Every candidate fitted, ranked by held-out chi-square then BIC, their in-sample predictions, the models of
     the one-curve frequency candidates (the pairs' pool) and the curves of every frequency candidate (a
-    support's two-dof form: two; the targeted test's draws), all by `CandidateFit.key`.
+    two-form candidate: two; the targeted test's draws), all by `CandidateFit.key`.
     """
     ranking, predictions, models = [], {}, {}
     two_forms: dict[tuple[str, str | None, str], tuple[Frequencies, ...]] = {}
@@ -199,7 +199,8 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
 def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: np.ndarray,
                fit_base_damping: DampingFit | None) -> tuple[CandidateFit, np.ndarray]:
     """One effect in two of its forms at one place (`workbench.diagnose.combined.form_pairs`: a support that
-    gives way in two dofs), fitted on both parameters; scored as any candidate, its second parameter charged.
+    gives way in two dofs, the drive's spring and moving mass), fitted on both parameters; scored as any
+    candidate, its second parameter charged.
     """
     grid = PairGrid((a, b), obs, baseline_hz)
     return evaluate(a.curve.effect, a.curve.where,

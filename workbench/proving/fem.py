@@ -272,6 +272,8 @@ def _node_terms(article: Article, mesh: _Mesh, dofs: np.ndarray,
         node = dofs[mesh.point_node[pm.point]]
         blocks["m"].append((node, np.diag([pm.mass, pm.mass, pm.rotary_inertia])))
     for spring in frame.springs:
+        if spring.mass:  # a frame file has none; the generator's drive is its own (mechanisms.py)
+            raise ValueError(f"{frame.source}: the spring at {spring.point!r}: a moving mass is the diagnosis's only")
         i = DOF_NAMES.index(spring.dof)
         blocks["k"].append((dofs[mesh.point_node[spring.point], i:i + 1], np.array([[spring.stiffness]])))
     for att in article.attachments:

@@ -216,8 +216,14 @@ def _stinger_stiffness(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
     dof = p.get("dof", frame.excitation.dof if frame.excitation else "ux")
     if w not in frame.points:
         raise ValueError(f"stinger_stiffness: {w!r} is not a point")
+    _drive_given(p)
     spring = GroundSpring(w, dof, float(p.get("stiffness", 0.0)), float(p.get("moving_mass", 0.0)))
     return replace(frame, springs=frame.springs + (spring,))
+
+
+def _drive_given(p: dict[str, Any]) -> None:
+    if "stiffness" not in p and "moving_mass" not in p:
+        raise ValueError("stinger_stiffness: give its stiffness, its moving_mass or both")
 
 
 def _axial_prestress(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
@@ -333,6 +339,7 @@ def apply_matrix_effect(model: MatrixModel, effect: Effect | None) -> MatrixMode
         return replace(model, mass=(model.mass + extra).tocsr())
     if model.excitation is None or int(model.dofs.nodes[model.excitation]) != node:
         raise ValueError(f"{model.source}: stinger_stiffness at {effect.where!r}, which is not the excitation")
+    _drive_given(p)
     at = ([model.excitation], [model.excitation])
     spring = sp.csr_matrix(([float(p.get("stiffness", 0.0))], at), shape=model.mass.shape)
     moving = sp.csr_matrix(([float(p.get("moving_mass", 0.0))], at), shape=model.mass.shape)
