@@ -89,8 +89,8 @@ def mass_scale(mass: sp.spmatrix) -> float:
     diagonal summed over every third free dof.
 
     It is not the frame's mass: where supports remove dofs the stride drifts off ``ux`` (on the proving ground's
-    portals it sums mostly ``uy`` and some ``rz``: about half the frame's translating mass, 0.50 kg of 0.95 kg on
-    the two-bolt frame). The grids it scales are the ones the validations ran with; a grid up to the frame's
+    portals it sums mostly ``uy`` and some ``rz``: 0.50 kg on the two-bolt frame, whose rigid translation along x
+    sees 1.16 kg). The grids it scales are the ones the validations ran with; a grid up to the frame's
     translating mass would be another rule, to be judged on a fresh seed.
     """
     return float(mass.diagonal()[0::3].sum())
