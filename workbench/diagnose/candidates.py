@@ -3,7 +3,8 @@
 Every effect of `workbench.rig.effects.EFFECTS` that is a candidate, at each place of the kind it
 names, gets a grid of its parameter (`workbench.diagnose.curves.sweep`): a support's rotational
 stiffness (clamped supports from a hundredth of the beam's EI / L up), the stinger's stiffness
-(around the drive point's static stiffness) and the mass that moves with the drive, each member's
+(around the drive point's static stiffness) and the mass that moves with the drive (a candidate only
+with the spring: `workbench.diagnose.verdict.PAIRED_ONLY`), each member's
 axial force (-0.6 to 2 Euler loads carried through the frame, -1.5 to 2 locked in between the
 member's own ends), each joint's modulus factor (0.1 to 10, and every joint at once), the shear
 coefficient (Euler-Bernoulli frames), and an added mass. Amplitude softening and joint damping

@@ -5,8 +5,9 @@ axial prestress are not candidates. What remains, each on a grid of its paramete
 (`workbench.diagnose.curves.sweep`, the model changed by `workbench.rig.effects.apply_matrix_effect`):
 
 - each joint's modulus factor (0.1 to 10), and every joint at once;
-- the shaker's drive at the excitation's dof: its spring, around the drive point's static stiffness, and the
-  mass moving with it, each alone and both at once (`workbench.diagnose.candidates.drive_curves`);
+- the shaker's drive at the excitation's dof: its spring, around the drive point's static stiffness, alone or
+  with the mass moving with it (`workbench.diagnose.candidates.drive_curves`; the mass is no candidate alone,
+  `workbench.diagnose.verdict.PAIRED_ONLY`);
 - an added mass (on a node's translations) at the few nodes where a mass best explains the
   residual with the modes held fixed (`_mass_screen`), 5 cm apart when the dof table gives
   coordinates; a node is named ``"node N"``.

@@ -13,12 +13,12 @@ CONTRACTS.md section 3 (the registry `workbench.rig.effects`), in stages:
   of their stiffness, mass or damping explains.
 - **Which** (`workbench.diagnose.candidates`, `workbench.diagnose.curves`): each candidate effect
   of the registry, at each place it can sit, with one parameter (a support's rotational or translational
-  stiffness, a mass, a shear coefficient, a stinger stiffness or the mass moving with the drive, an axial
-  force carried by the frame or locked in between a member's ends, a joint's modulus factor, a softening
-  slope, a joint loss, hysteretic or viscous); added masses also choose their position along a member; a
-  support also gives way in two of its dofs at once and the drive acts by its spring and its moving mass at
-  once (`workbench.diagnose.combined.form_pairs`: a clamp that rocks and slides, a shaker's suspension and
-  armature), the second parameter charged in the score.
+  stiffness, a mass, a shear coefficient, a stinger stiffness, an axial force carried by the frame or locked
+  in between a member's ends, a joint's modulus factor, a softening slope, a joint loss, hysteretic or
+  viscous); added masses also choose their position along a member; a
+  support also gives way in two of its dofs at once, and the drive acts by its spring and the mass moving with
+  it at once, that mass never alone (`workbench.diagnose.combined.form_pairs`, `PAIRED_ONLY`: a clamp that rocks
+  and slides, a shaker's suspension and armature), the second parameter charged in the score.
 - **Held-out protocol** (`workbench.diagnose.fitting`): leave one mode out; candidates ranked by
   their total held-out chi-square.
 
