@@ -164,6 +164,34 @@ def test_bands_are_found_and_fit_end_to_end_at_40_db():
     assert len(ex.find_mode_bands(F, noisy, count=2)) == 2
 
 
+def test_a_damped_mode_the_band_cuts_near_its_top_is_found_and_a_flank_is_not():
+    """A mode 1.5 % below the band's top with 1.4 % damping: the band cuts its curve before it falls by a
+    tenth of a decade, so scipy's prominence (bounded by the last line) misses it; it is found and fitted
+    to its true frequency and damping. A mode 1 % above the top leaves a rising flank: no mode there."""
+    from scipy.signal import find_peaks
+
+    from workbench.extraction.bands import _summary
+
+    constants = np.array([[1.0, 0.8], [0.5, -0.9]])
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        edge = add_noise(modal_superposition(F, np.array([1080.0, 1231.5]), np.array([0.007, 0.014]), constants,
+                                             "accelerance"), 40.0, rng)
+        log_s = np.log10(_summary(edge))
+        peaks, props = find_peaks(log_s, prominence=0.0)
+        top = peaks[np.argmin(np.abs(F[peaks] - 1231.5))]
+        assert props["prominences"][list(peaks).index(top)] < 0.3  # the rule, not scipy's, finds it
+        bands = ex.find_mode_bands(F, edge)
+        assert len(bands) == 2 and bands[1][0] < 1231.5 <= bands[1][1]
+        fit = ex.combine(ex.fit_modes(F, edge, "accelerance", bands)[1])
+        assert fit.frequency_hz == pytest.approx(1231.5, rel=1e-3)
+        assert fit.damping_ratio == pytest.approx(0.014, rel=0.1)
+        flank = add_noise(modal_superposition(F, np.array([1080.0, 1262.0]), np.array([0.007, 0.005]), constants,
+                                              "accelerance"), 40.0, rng)
+        flank[:, -1] *= 0.97  # a last line lower by noise, as in the example campaign cut at 130 Hz
+        assert len(ex.find_mode_bands(F, flank)) == 1
+
+
 def test_error_vs_snr_shrinks_with_snr():
     out = ex.error_vs_snr([30.0, 50.0], seeds=[0, 1])
     assert out["frequency_median"].shape == (2, 3) and out["damping_p90"].shape == (2, 3)

@@ -19,6 +19,8 @@ from workbench.tasks import Mapper, serial_mapper
 
 __all__ = ["find_mode_bands", "split_bands", "track_bands", "peak_start", "MOVE_LIMIT"]
 
+OPEN_SIDE_DROP = 0.05  # decades (1 dB): a peak's side cut off by the band must fall this much (`_prominences`)
+OPEN_SIDE_LINES = 4  # lines, at least, on that side
 MOVE_LIMIT = 0.1  # a mode moves less than 10 % between tests (3 % is a strongly softening joint); farther is another
 
 
@@ -38,6 +40,35 @@ def _half_power_edges(s: np.ndarray, k: int) -> tuple[float, float]:
     else:
         hi = float(s.size - 1)
     return float(lo), float(hi)
+
+
+def _prominences(log_s: np.ndarray, peaks: np.ndarray, props: dict) -> np.ndarray:
+    """The peaks' prominences (decades), a side cut off by the measured band not counted.
+
+    `scipy.signal.peak_prominences` bounds a peak by the lowest point on each side up to a higher peak, or up
+    to the band's end where there is none: a resonance near the band's top whose curve the band cuts before it
+    falls (a mode 1.5 % below the top with 1.4 % damping falls less than a tenth of a decade there) would have almost no
+    prominence. A side with no higher point is cut off, so such a peak is measured on its other side, if the
+    cut side falls by `OPEN_SIDE_DROP` over at least `OPEN_SIDE_LINES` lines: the band then holds the
+    resonance's top (a single mode's curve falls that much half a half-power half-width past its peak), not the
+    rising flank of a mode beyond it with a last line lower by noise. A peak open on both sides, the highest,
+    keeps scipy's prominence.
+    """
+    prominences = np.asarray(props["prominences"], float).copy()
+    if peaks.size == 0:
+        return prominences
+    left_max = np.maximum.accumulate(log_s)  # the highest point up to each line
+    right_max = np.maximum.accumulate(log_s[::-1])[::-1]
+    last = log_s.size - 1
+    for i, k in enumerate(peaks):
+        left_open = left_max[k - 1] <= log_s[k] if k > 0 else True
+        right_open = right_max[k + 1] <= log_s[k] if k < last else True
+        if right_open and not left_open and last - k >= OPEN_SIDE_LINES \
+                and log_s[k] - log_s[k + 1:].min() >= OPEN_SIDE_DROP:
+            prominences[i] = log_s[k] - log_s[props["left_bases"][i]]
+        elif left_open and not right_open and k >= OPEN_SIDE_LINES and log_s[k] - log_s[:k].min() >= OPEN_SIDE_DROP:
+            prominences[i] = log_s[k] - log_s[props["right_bases"][i]]
+    return prominences
 
 
 def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_prominence: float = 0.3,
@@ -77,14 +108,17 @@ def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_promine
     h = _check_frfs(frfs, f.size)
     s = _summary(h)
     log_s = np.log10(np.maximum(s, np.finfo(float).tiny))
-    peaks, props = find_peaks(log_s, prominence=min_prominence, height=np.log10(min_snr))
+    peaks, props = find_peaks(log_s, prominence=0.0, height=np.log10(min_snr))
+    prominences = _prominences(log_s, peaks, props)
+    prominent = prominences >= min_prominence
+    peaks, prominences = peaks[prominent], prominences[prominent]
     keep = (f[peaks] >= f_min) & (f[peaks] <= f_max) & (f[peaks] > 0)
     lines = np.arange(f.size, dtype=float)
     edges = {int(k): _half_power_edges(s, int(k)) for k in peaks[keep]}
     narrow = np.array([np.interp(edges[k][1], lines, f) - np.interp(edges[k][0], lines, f)
                        <= 2.0 * max_damping * f[k] for k in peaks], dtype=bool)
     keep &= narrow
-    peaks, prominence = peaks[keep], props["prominences"][keep]
+    peaks, prominence = peaks[keep], prominences[keep]
     if count is not None and peaks.size > count:
         peaks = np.sort(peaks[np.argsort(prominence)[::-1][:count]])
     bands = []
