@@ -165,31 +165,39 @@ def test_bands_are_found_and_fit_end_to_end_at_40_db():
 
 
 def test_a_damped_mode_the_band_cuts_near_its_top_is_found_and_a_flank_is_not():
-    """A mode 1.5 % below the band's top with 1.4 % damping: the band cuts its curve before it falls by a
-    tenth of a decade, so scipy's prominence (bounded by the last line) misses it; it is found and fitted
-    to its true frequency and damping. A mode 1 % above the top leaves a rising flank: no mode there."""
-    from scipy.signal import find_peaks
+    """A mode 1.5 % below the band's top with 1.4 % damping: the band cuts its curve before it falls by 0.3
+    decades, so scipy's prominence (bounded by the last line) misses it; it is found and fitted to its true
+    frequency and damping. A mode 1 % above the top leaves a rising flank: no mode there, whether noise
+    lowers its last line (a drop, but within the last lines) or its last lines (more lines, no 1 dB drop)."""
+    from scipy.signal import peak_prominences
 
-    from workbench.extraction.bands import _summary
+    from workbench.extraction.bands import OPEN_SIDE_LINES, _summary
 
     constants = np.array([[1.0, 0.8], [0.5, -0.9]])
+    near_top = np.flatnonzero(F >= 1200.0)
     for seed in range(3):
         rng = np.random.default_rng(seed)
         edge = add_noise(modal_superposition(F, np.array([1080.0, 1231.5]), np.array([0.007, 0.014]), constants,
                                              "accelerance"), 40.0, rng)
         log_s = np.log10(_summary(edge))
-        peaks, props = find_peaks(log_s, prominence=0.0)
-        top = peaks[np.argmin(np.abs(F[peaks] - 1231.5))]
-        assert props["prominences"][list(peaks).index(top)] < 0.3  # the rule, not scipy's, finds it
+        top = int(near_top[np.argmax(log_s[near_top])])
+        assert log_s[top] > max(log_s[top - 1], log_s[top + 1]) and top < F.size - 1  # a peak, inside the band
+        assert peak_prominences(log_s, [top])[0][0] < 0.3  # the rule, not scipy's prominence, finds it
         bands = ex.find_mode_bands(F, edge)
         assert len(bands) == 2 and bands[1][0] < 1231.5 <= bands[1][1]
         fit = ex.combine(ex.fit_modes(F, edge, "accelerance", bands)[1])
         assert fit.frequency_hz == pytest.approx(1231.5, rel=1e-3)
         assert fit.damping_ratio == pytest.approx(0.014, rel=0.1)
+        assert len(ex.find_mode_bands(F, edge, f_max=1150.0)) == 1  # a peak left out by f_max is no error
         flank = add_noise(modal_superposition(F, np.array([1080.0, 1262.0]), np.array([0.007, 0.005]), constants,
                                               "accelerance"), 40.0, rng)
-        flank[:, -1] *= 0.97  # a last line lower by noise, as in the example campaign cut at 130 Hz
         assert len(ex.find_mode_bands(F, flank)) == 1
+        lowered = flank.copy()
+        lowered[:, -1] *= 0.7  # a drop beyond 1 dB, on one line
+        assert len(ex.find_mode_bands(F, lowered)) == 1
+        lowered = flank.copy()  # enough lines after a last high one, but a flat end 0.5 dB lower: half the drop
+        lowered[:, -2 * OPEN_SIDE_LINES:] = lowered[:, [-2 * OPEN_SIDE_LINES - 1]] * 10 ** -0.025
+        assert len(ex.find_mode_bands(F, lowered)) == 1
 
 
 def test_error_vs_snr_shrinks_with_snr():
