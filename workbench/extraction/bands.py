@@ -83,7 +83,8 @@ def find_mode_bands(frequency_hz, frfs, *, count: int | None = None, min_promine
 
     The summary function is ``S(f) = mean_curves |H(f)| / sigma`` with ``sigma`` each curve's
     `noise_level` (so no sensor dominates and S reads in noise levels); peaks of ``log10 S`` with a
-    prominence of at least ``min_prominence`` decades and a height of at least ``min_snr`` noise
+    prominence of at least ``min_prominence`` decades (a side the band's end cuts off not counted,
+    `_prominences`) and a height of at least ``min_snr`` noise
     levels are kept (`scipy.signal.find_peaks`), the ``count`` most prominent if given. Each band
     is the peak +- ``width_factor`` half-power half-widths of S (at least ``min_lines`` lines each
     side), cut at the minimum of S between neighbouring peaks so that bands do not overlap (unless
