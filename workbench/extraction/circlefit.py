@@ -73,6 +73,10 @@ over the radius), the curve's noise level estimated from second differences over
   close, and on every mode of a band that holds two (`workbench.extraction.modes`);
 - ``"few_points"``: fewer than `MIN_SIDE_POINTS` points on a side of resonance for the pairs;
 - ``"edge_of_band"``: natural frequency closer to a band edge than a half-power half-width.
+- ``"unresolved"``: the fitted half-power bandwidth is under `UNRESOLVED_LINES` line spacings (the angle model
+  collapsed: zero damping, the pole on the peak line) and the peak's three lines are not one mode's either; the
+  frequency is the peak line's, known to a line. Where they are one mode's, `peak_inverse` gives the
+  frequency, the damping and their intervals in closed form, without a flag.
 
 95 % intervals (`ModalFit.frequency_ci95_hz`, `ModalFit.damping_ci95`, `_intervals`): from the
 covariance of the joint refinement (step 3), ``s^2 (J^T J)^-1`` with ``s^2`` its residual variance,
@@ -105,28 +109,16 @@ from workbench.extraction.circle_geometry import (
 )
 from workbench.extraction.levenberg import lm
 from workbench.extraction.multimode import inverse_normal, noise_level, second_mode, t975
+from workbench.extraction.peak_inverse import UNRESOLVED_LINES, unresolved_peak
 
 __all__ = [
-    "QUANTITIES",
-    "FLAGS",
-    "WEAK_FACTOR",
-    "POOR_CIRCLE",
-    "CLOSE_CORRELATION",
-    "CLOSE_EXCESS",
-    "CLOSE_FLOOR",
-    "CLOSE_BANDWIDTHS",
-    "LEAKAGE_LINES",
-    "MIN_SIDE_POINTS",
-    "MIN_BAND_POINTS",
-    "ModalFit",
-    "to_mobility",
-    "pair_damping",
-    "noise_level",
-    "circle_fit",
+    "QUANTITIES", "FLAGS", "WEAK_FACTOR", "POOR_CIRCLE", "CLOSE_CORRELATION", "CLOSE_EXCESS", "CLOSE_FLOOR",
+    "CLOSE_BANDWIDTHS", "LEAKAGE_LINES", "MIN_SIDE_POINTS", "MIN_BAND_POINTS", "ModalFit", "to_mobility",
+    "pair_damping", "noise_level", "circle_fit"
 ]
 
 QUANTITIES = ("receptance", "mobility", "accelerance")
-FLAGS = ("close_mode", "weak", "poor_circle", "few_points", "edge_of_band")
+FLAGS = ("close_mode", "weak", "poor_circle", "few_points", "edge_of_band", "unresolved")
 WEAK_FACTOR = 5.0        # diameter / noise RMS below which a mode is "weak"
 POOR_CIRCLE = 0.05       # circle error (RMS radial distance / radius) above which "poor_circle"
 CLOSE_CORRELATION = 3.0  # lag-1 correlation of the misfit above this / sqrt(n): not white noise
@@ -426,15 +418,21 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     omega = 2.0 * np.pi * f[inside]
     data = to_mobility(f[inside], h[inside], quantity)
 
-    centre, radius = geometric(data, *taubin(data))
-    phi0, omega_r, zeta_sweep, sense = _fit_sweep(omega, np.angle(data - centre))
+    first = geometric(data, *taubin(data))
+    phi0, omega_r, zeta_sweep, sense = _fit_sweep(omega, np.angle(data - first[0]))
     n_trend = int(np.clip((omega.size - 6) // 4, 0, 3))  # 2n real equations, 6 + 2 n_trend unknowns
     centre, radius, phi0, omega_r, zeta_sweep, trend, spread, sense = _refine(
-        omega, data, centre, radius, phi0, omega_r, zeta_sweep, sense, n_trend)
+        omega, data, *first, phi0, omega_r, zeta_sweep, sense, n_trend)
+    to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
+    unresolved, found = 2.0 * zeta_sweep * omega_r < UNRESOLVED_LINES * float(np.median(np.diff(omega))), True
+    if unresolved:  # the sweep's damping collapsed onto a line: the peak's lines instead (`unresolved_peak`)
+        (centre, radius), trend = first, np.zeros_like(data)
+        omega_r, zeta_sweep, spread, found = unresolved_peak(omega, data, curve_noise * to_mob)
+        phi0 = float(np.angle(data[np.argmax(np.abs(data))] - centre))
     y = data - trend
-    phi = np.angle(y - centre)
-    psi = wrap_angle(phi - phi0)
+    psi = wrap_angle(np.angle(y - centre) - phi0)
     estimates, n_above, n_below = pairs(omega, psi, omega_r, sense)
+    estimates = estimates[:0] if unresolved else estimates
     zeta = float(np.mean(estimates)) if estimates.size else zeta_sweep
     zeta = zeta if np.isfinite(zeta) and zeta > 0 else zeta_sweep
     diameter = 2.0 * radius * np.exp(1j * phi0)
@@ -448,9 +446,7 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     misfit = y - (centre + radius * np.exp(1j * sweep_angle(omega, phi0, omega_r, zeta_sweep, sense)))
     n = omega.size
     circle_error = float(np.sqrt(np.mean(radial**2)) / radius) if radius > 0 else np.inf
-    # the curve's own noise, independent of the fit, in mobility units at resonance
-    to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
-    noise = curve_noise * to_mob
+    noise = curve_noise * to_mob  # the curve's own noise, independent of the fit, in mobility units at resonance
     power = float(np.sum(np.abs(misfit) ** 2))
     misfit_rms = np.sqrt(power / n)
     # a second mode leaves a misfit larger than the noise, or smooth (correlated) along frequency
@@ -472,7 +468,10 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     if not (lo + half_width <= f_r <= hi - half_width):
         flags.append("edge_of_band")
 
-    triggered = bool(systematic and misfit_rms > CLOSE_FLOOR * radius and not weak)
+    if unresolved and not found:
+        flags.append("unresolved")
+    # a mode the circle could not resolve was not fitted by it: its misfit says nothing of a second mode
+    triggered = bool(systematic and misfit_rms > CLOSE_FLOOR * radius and not weak and not unresolved)
     # a systematic misfit is a distortion (or a second mode): a finite record's window smears the
     # peak over its main lobe (+-1 line rectangular, +-2 Hanning), so the half-power bandwidth
     # 2 zeta f_r is known to LEAKAGE_LINES line spacings only

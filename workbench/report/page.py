@@ -156,8 +156,8 @@ def _modes_section(study: Study, tables: Tables, prefix: str) -> str:
                                           "mean damping (%)", "tests used", "tests flagged"], rows,
                        ["", ".1f", ".2f", ".3f", ".3f", ".3f", "", ""], left=0) +
             '<p class="note">Sensors are combined per mode by fit quality; a mode whose combined fit is flagged '
-            "weak or poor_circle is left out of that test. Flagged tests (any flag, e.g. close_mode) are counted "
-            "in the last column. Modes are paired with the model by order.</p>")
+            "weak, poor_circle or unresolved is left out of that test. Flagged tests (any flag, e.g. close_mode) are "
+            "counted in the last column. Modes are paired with the model by order.</p>")
 
 
 def _nominal_section(study: Study, tables: Tables, prefix: str) -> str:

@@ -41,8 +41,8 @@ __all__ = ["UNUSABLE_FLAGS", "Extraction", "extract_campaign", "load_and_extract
            "QUALITY_HEADER", "NyquistData", "nyquist_data", "mode_windows", "measured_modes"]
 
 # A mode whose combined fit carries one of these flags is left out of that test, as in
-# `measured_modes`: the circle is lost in noise or is not a circle.
-UNUSABLE_FLAGS = ("weak", "poor_circle")
+# `measured_modes`: the circle is lost in noise, is not a circle, or is narrower than a line and not one mode's.
+UNUSABLE_FLAGS = ("weak", "poor_circle", "unresolved")
 
 
 @dataclass(frozen=True)

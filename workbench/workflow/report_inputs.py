@@ -33,7 +33,7 @@ from workbench.workflow.measured import Extraction, extract_campaign
 __all__ = ["ShapeComparison", "shape_comparison", "usable_constants", "parse_bands",
            "load_for_report", "SHAPE_UNUSABLE"]
 
-SHAPE_UNUSABLE = ("few_points", "edge_of_band")
+SHAPE_UNUSABLE = ("few_points", "edge_of_band", "unresolved")
 
 
 def parse_bands(text: str | None) -> list[tuple[float, float]] | None:
