@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import logging
 import re
+import sys
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
@@ -58,9 +60,15 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
         # 12.4 s for campaigns/four_bolt_table6); the workers keep one BLAS thread each
         environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
                    if k != "MALLOC_TRIM_THRESHOLD_"}
+        settings: dict[str, object] = {"distributed.nanny.pre-spawn-environ": environ}
+        if sys.platform.startswith("linux"):
+            settings["distributed.worker.multiprocessing-method"] = "fork"
         # dashboard on a free port: with None the scheduler's HTTP server still takes 8787, and a second
         # workbench run beside the first warns (an error under pytest) and moves
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+        with dask.config.set(settings), warnings.catch_warnings():
+            # the workers are forked from Dask's event-loop thread; Python 3.12+ warns of any fork of a
+            # threaded process, but the forked worker runs only its own event loop (Dask supports "fork")
+            warnings.filterwarnings("ignore", message=r".*multi-threaded, use of fork\(\)", category=DeprecationWarning)
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                                    silence_logs=logging.ERROR)
         client = Client(cluster, set_as_default=False)
