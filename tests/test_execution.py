@@ -94,7 +94,7 @@ def test_a_worker_killed_mid_run_changes_nothing(cluster):
 @pytest.mark.slow
 def test_validation_cases_are_the_same_with_and_without_a_scheduler(tmp_path, cluster):
     outputs = []
-    for name, extra in (("serial", ()), ("remote", ("--scheduler", cluster.scheduler_address))):
+    for name, extra in (("serial", ("--workers", "1")), ("remote", ("--scheduler", cluster.scheduler_address))):
         from workbench.cli import main  # not run_cli: four cases take longer than its hang alarm
 
         assert main(["validate-diagnosis", "--cases", "4", "--seed", "5", "--out", str(tmp_path / name), *extra]) == 0
@@ -105,11 +105,12 @@ def test_validation_cases_are_the_same_with_and_without_a_scheduler(tmp_path, cl
 
 @pytest.mark.slow
 def test_diagnose_gives_the_same_record_serially_and_on_a_scheduler(tmp_path, cluster):
-    """`workbench diagnose` with its circle fits handed to a running scheduler (spawned workers) and to a local
-    cluster (``--workers 2``, forked workers on Linux): the same diagnosis.json (but its wall time) as in this
-    process, on the campaign another program wrote (../shared/examples) and on a 12-test two-bay campaign of
-    the proving ground, whose lowest mode is narrower than the line spacing (a fit whose damping collapsed onto a
-    line once stopped where rounding stopped it, so the workers' numbers differed from this process's).
+    """`workbench diagnose` with its circle fits handed to a running scheduler (spawned workers) and to the local
+    cluster it starts by default (one worker per core, forked on Linux): the same diagnosis.json (but its wall
+    time) as in this process, on the campaign another program wrote (../shared/examples) and on a 12-test
+    two-bay campaign of the proving ground, whose lowest mode is narrower than the line spacing (a fit whose
+    damping collapsed onto a line once stopped where rounding stopped it, so the workers' numbers differed from
+    this process's).
     """
     import json
 
@@ -122,8 +123,8 @@ def test_diagnose_gives_the_same_record_serially_and_on_a_scheduler(tmp_path, cl
                    two_bay)
     for campaign in (shared_path("examples", "independent-two-test-campaign"), two_bay):
         records = []
-        for name, extra in (("serial", ()), ("remote", ("--scheduler", cluster.scheduler_address)),
-                            ("local", ("--workers", "2"))):
+        for name, extra in (("serial", ("--workers", "1")), ("remote", ("--scheduler", cluster.scheduler_address)),
+                            ("every_core", ())):
             out = tmp_path / f"{campaign.name}_{name}"
             assert main(["diagnose", str(campaign), "--out", str(out), *extra]) == 0
             record = json.loads((out / "diagnosis.json").read_text())

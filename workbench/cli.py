@@ -25,6 +25,7 @@ from workbench.model.structure import Structure, structure_modes
 from workbench.model.tolerance import Tolerances
 from workbench.progress import Progress
 from workbench.report.tables import declared_files
+from workbench.tasks import local_cores
 from workbench.uq.limits import smr1_cov_warning
 from workbench.uq.smr import propagate
 from workbench.uq.stochastic import joint_model
@@ -341,7 +342,7 @@ def _parser() -> argparse.ArgumentParser:
                 ("diagnosis.json", "index.html", *declared_files("diagnosis")))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
-    _work_options(p)
+    _work_options(p, every_core=True)
 
     _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",
                             _design, ("designs.csv", "design.csv", "campaign.toml", "index.html")))
@@ -349,7 +350,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("validate-diagnosis", help="blind validation of the diagnosis on proving-ground cases")
     p.add_argument("--cases", type=_positive_int, default=200, help="number of cases (default 200)")
     p.add_argument("--seed", type=int, default=0, help="seed of the case mix (default 0)")
-    _work_options(p)
+    _work_options(p, every_core=True)
     p.add_argument("--out", required=True, help="output directory: validation.json, cases.csv, index.html")
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")
     p.set_defaults(run=_validate_diagnosis, writes=("validation.json", "cases.csv", "index.html"))
@@ -409,10 +410,14 @@ def _design_options(p: argparse.ArgumentParser) -> None:
     _work_options(p)
 
 
-def _work_options(p: argparse.ArgumentParser) -> None:
-    """``--workers`` and ``--scheduler`` of the commands whose work is handed out (CONTRACTS.md section 3)."""
-    p.add_argument("--workers", type=_positive_int, default=1,
-                   help="worker processes on this machine (a local Dask cluster above 1)")
+def _work_options(p: argparse.ArgumentParser, every_core: bool = False) -> None:
+    """``--workers`` and ``--scheduler`` of the commands whose work is handed out (CONTRACTS.md section 3);
+    ``every_core``: by default one worker per core this process may use (`local_cores`), else one.
+    """
+    default = local_cores() if every_core else 1
+    p.add_argument("--workers", type=_positive_int, default=default,
+                   help=f"worker processes on this machine (a local Dask cluster above 1; default {default}"
+                        f"{', the cores this process may use, at most 8' if every_core else ''})")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler (tcp://host:8786) to run the work on; same numbers as without")
 

@@ -11,12 +11,13 @@ carries its own inputs and seeds, so the results do not depend on the mapper or 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
 from workbench.progress import Progress, report
 
-__all__ = ["Mapper", "serial", "serial_mapper"]
+__all__ = ["Mapper", "local_cores", "serial", "serial_mapper"]
 
 Mapper = Callable[[Callable[[Any, Any], Any], Sequence[Any], str, Any], list[Any]]
 """``mapper(function, tasks, label, shared) -> [function(shared, task) for task in tasks]``, in order."""
@@ -35,3 +36,14 @@ def serial(function: Callable[[Any, Any], Any], tasks: Sequence[Any], label: str
 def serial_mapper(progress: Progress | None = None) -> Mapper:
     """`serial` as a `Mapper` reporting to ``progress``."""
     return lambda function, tasks, label, shared: serial(function, tasks, label, shared, progress)
+
+
+def local_cores(most: int = 8) -> int:
+    """The cores this process may use (its CPU affinity where the system tells it), at least 1, at most ``most``:
+    a campaign's dozen circle-fit tasks keep no more than a few workers busy.
+    """
+    try:
+        count = len(os.sched_getaffinity(0))
+    except AttributeError:  # macOS and Windows do not tell a process its affinity
+        count = os.cpu_count() or 1
+    return max(1, min(count, most))
