@@ -4,7 +4,8 @@ For each frame of the proving ground, one 12-test blind campaign (6 low and 6 hi
 vocabulary at medium footprint, nuisances on) is written to a temporary directory, then ``workbench diagnose``
 runs on it as a user would run it: a new process, the circle fit of every FRF, the diagnosis, the page. The
 time printed is the command's whole wall time, with the circle fits on one process and on two
-(``--workers 2``, a local Dask cluster), and the diagnosis's own (``diagnosis.json``'s wall_time_s).
+(``--workers 2``, a local Dask cluster, what the command does by default on a 2-core machine), and the
+diagnosis's own (``diagnosis.json``'s wall_time_s).
 
 Run: ``python benchmarks/diagnose_speed.py`` (about 3 minutes).
 """
