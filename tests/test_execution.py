@@ -131,3 +131,20 @@ def test_diagnose_gives_the_same_record_serially_and_on_a_scheduler(tmp_path, cl
             record.pop("wall_time_s")
             records.append(record)
         assert records[0] == records[1] == records[2] and records[0]["ranking"]
+
+
+@pytest.mark.slow
+def test_design_gives_the_same_plan_and_check_serially_and_on_a_scheduler(tmp_path, cluster):
+    """`workbench design`'s candidates and its simulation check (``--verify``) handed to a running scheduler:
+    the same designs.csv, design.csv and check table as in this process."""
+    outs = []
+    for name, extra in (("serial", ()), ("remote", ("--scheduler", cluster.scheduler_address))):
+        out = tmp_path / name
+        code, err = run_cli(["design", str(REPO / "frames" / "two_bolt.toml"), "--out", str(out), "--budget", "12",
+                             "--target", "5", "--verify", "2", *extra])
+        assert code == 0, err
+        outs.append(out)
+    for name in ("designs.csv", "design.csv"):
+        assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes()
+    checks = [(o / "index.html").read_text().split("Simulation check")[1].split("Every candidate")[0] for o in outs]
+    assert checks[0] == checks[1] and "simulated width" in checks[0]
