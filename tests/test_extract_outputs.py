@@ -14,6 +14,7 @@ from conftest import REPO
 from scipy.stats import binomtest
 
 from workbench.cli import main
+from workbench.extraction.circlefit import FLAGS
 from workbench.io.campaign import Factor, load_campaign
 from workbench.model.assembly import assemble
 from workbench.model.frame_file import read_frame
@@ -50,8 +51,7 @@ def test_modes_csv_has_the_contract_columns_and_intervals_that_hold_the_truth(ex
             lo, f, hi = (float(r[k]) for k in ("frequency_hz_ci95_low", "frequency_hz", "frequency_hz_ci95_high"))
             zlo, z, zhi = (float(r[k]) for k in ("damping_ratio_ci95_low", "damping_ratio", "damping_ratio_ci95_high"))
             assert lo <= f <= hi and zlo <= z <= zhi
-            assert all(flag in ("close_mode", "weak", "poor_circle", "few_points", "edge_of_band")
-                       for flag in r["flags"].split(";") if flag)
+            assert all(flag in FLAGS for flag in r["flags"].split(";") if flag)
             inside_f.append(lo <= f_true <= hi)
             inside_z.append(zlo <= z_true <= zhi)
     # 24 intervals each: a 95 % interval that holds the truth fewer than 19 times is refused at 1 %

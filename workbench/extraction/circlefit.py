@@ -73,10 +73,9 @@ over the radius), the curve's noise level estimated from second differences over
   close, and on every mode of a band that holds two (`workbench.extraction.modes`);
 - ``"few_points"``: fewer than `MIN_SIDE_POINTS` points on a side of resonance for the pairs;
 - ``"edge_of_band"``: natural frequency closer to a band edge than a half-power half-width.
-- ``"unresolved"``: the fitted half-power bandwidth is under `UNRESOLVED_LINES` line spacings (the angle model
-  collapsed: zero damping, the pole on the peak line) and the peak's three lines are not one mode's either; the
-  frequency is the peak line's, known to a line. Where they are one mode's, `peak_inverse` gives the
-  frequency, the damping and their intervals in closed form, without a flag.
+- ``"unresolved"``: the angles could not resolve the mode (they collapsed: a fitted bandwidth under
+  `UNRESOLVED_LINES` lines), nor could the peak's magnitudes (`peak_inverse`, which otherwise gives the fit's
+  frequency, damping and intervals, unflagged): the peak line, known to a line.
 
 95 % intervals (`ModalFit.frequency_ci95_hz`, `ModalFit.damping_ci95`, `_intervals`): from the
 covariance of the joint refinement (step 3), ``s^2 (J^T J)^-1`` with ``s^2`` its residual variance,
@@ -109,7 +108,7 @@ from workbench.extraction.circle_geometry import (
 )
 from workbench.extraction.levenberg import lm
 from workbench.extraction.multimode import inverse_normal, noise_level, second_mode, t975
-from workbench.extraction.peak_inverse import UNRESOLVED_LINES, unresolved_peak
+from workbench.extraction.peak_inverse import UNRESOLVED_LINES, peak_phase, unresolved_peak
 
 __all__ = [
     "QUANTITIES", "FLAGS", "WEAK_FACTOR", "POOR_CIRCLE", "CLOSE_CORRELATION", "CLOSE_EXCESS", "CLOSE_FLOOR",
@@ -138,8 +137,9 @@ class ModalFit:
     Attributes
     ----------
     frequency_hz : natural frequency, Hz.
-    damping_ratio : viscous damping ratio, mean of the pairwise estimates.
-    damping_scatter : standard deviation of the pairwise estimates (0 for a single pair).
+    damping_ratio : viscous damping ratio, mean of the pairwise estimates (`peak_inverse`'s where the angles
+        could not resolve the mode).
+    damping_scatter : standard deviation of the pairwise estimates (0 for a single pair, NaN for none).
     modal_constant : complex receptance modal constant ``A_r`` (m/N (rad/s)^2, i.e. 1/kg for a
         mass-normalised model: ``phi_j phi_k``).
     residual_lower : complex ``L`` of the receptance term ``-L / omega^2`` (1/kg): modes below.
@@ -151,12 +151,12 @@ class ModalFit:
     points_used : points of the band used in the circle fit.
     pairs_used : point pairs averaged for the damping.
     band : (f_lo, f_hi) in Hz.
-    flags : subset of ``("close_mode", "weak", "poor_circle", "few_points", "edge_of_band")``.
+    flags : subset of `FLAGS`.
     frequency_ci95_hz : (low, high) 95 % interval of the natural frequency, Hz (`_intervals`).
     damping_ci95 : (low, high) 95 % interval of the damping ratio (`_intervals`).
     damping_model_form : the part of ``damping_ci95`` common to every curve of the test (damping
         ratio, absolute half-width): `LEAKAGE_LINES` lines of half-power bandwidth when the misfit
-        is systematic, else 0.
+        is systematic or the mode narrower than the angles resolve, else 0.
     """
 
     frequency_hz: float
@@ -423,12 +423,14 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     n_trend = int(np.clip((omega.size - 6) // 4, 0, 3))  # 2n real equations, 6 + 2 n_trend unknowns
     centre, radius, phi0, omega_r, zeta_sweep, trend, spread, sense = _refine(
         omega, data, *first, phi0, omega_r, zeta_sweep, sense, n_trend)
-    to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
-    unresolved, found = 2.0 * zeta_sweep * omega_r < UNRESOLVED_LINES * float(np.median(np.diff(omega))), True
-    if unresolved:  # the sweep's damping collapsed onto a line: the peak's lines instead (`unresolved_peak`)
+    unresolved, found = bool(2.0 * zeta_sweep * omega_r < UNRESOLVED_LINES * np.median(np.diff(omega))), True
+    if unresolved:  # the angles collapsed onto a line: the peak's magnitudes instead (`peak_inverse`)
         (centre, radius), trend = first, np.zeros_like(data)
+        w = float(omega[np.argmax(np.abs(data))])  # the peak line, where the noise is taken to mobility
+        to_mob = {"receptance": w, "mobility": 1.0, "accelerance": 1.0 / w}[quantity]
         omega_r, zeta_sweep, spread, found = unresolved_peak(omega, data, curve_noise * to_mob)
-        phi0 = float(np.angle(data[np.argmax(np.abs(data))] - centre))
+        phi0, sense = peak_phase(omega, data, centre, omega_r, zeta_sweep)
+    to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
     y = data - trend
     psi = wrap_angle(np.angle(y - centre) - phi0)
     estimates, n_above, n_below = pairs(omega, psi, omega_r, sense)
@@ -467,15 +469,14 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     f_r = omega_r / (2 * np.pi)
     if not (lo + half_width <= f_r <= hi - half_width):
         flags.append("edge_of_band")
-
     if unresolved and not found:
         flags.append("unresolved")
     # a mode the circle could not resolve was not fitted by it: its misfit says nothing of a second mode
     triggered = bool(systematic and misfit_rms > CLOSE_FLOOR * radius and not weak and not unresolved)
     # a systematic misfit is a distortion (or a second mode): a finite record's window smears the
     # peak over its main lobe (+-1 line rectangular, +-2 Hanning), so the half-power bandwidth
-    # 2 zeta f_r is known to LEAKAGE_LINES line spacings only
-    model_form = LEAKAGE_LINES * float(np.median(np.diff(omega))) / (2.0 * omega_r) if triggered else 0.0
+    # 2 zeta f_r is known to LEAKAGE_LINES line spacings only; so is a mode narrower than a line
+    model_form = LEAKAGE_LINES * float(np.median(np.diff(omega))) / (2.0 * omega_r) if triggered or unresolved else 0.0
     f_ci, z_ci = _intervals(f_r, zeta, zeta_sweep, spread, model_form)
     fit = ModalFit(
         frequency_hz=float(f_r),
