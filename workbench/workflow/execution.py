@@ -33,6 +33,9 @@ _ADDRESS = re.compile(r"(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:]+\]|[A-Za
 def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | None = None) -> Iterator[Mapper]:
     """The `Mapper` of ``workers`` local processes or of the Dask scheduler at ``scheduler``.
 
+    The local cluster starts at the first call that hands out more than one task: a command that finds nothing
+    to hand out (a campaign of modes.csv, bad input) does not pay for it, and a single task runs here.
+
     Raises
     ------
     ValueError
@@ -41,46 +44,68 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
     if scheduler is None and workers <= 1:
         yield serial_mapper(progress)
         return
-    import dask
-    from distributed import Client, LocalCluster  # only when work is handed out: its import takes a second
+    opened: list[Any] = []  # the client, then the local cluster it runs on, once started
 
-    cluster = None
+    def run(function: Callable[[Any, Any], Any], tasks: Sequence[Any], label: str, shared: Any) -> list[Any]:
+        if not opened and len(tasks) <= 1:
+            return serial_mapper(progress)(function, tasks, label, shared)
+        if not opened:
+            opened.extend(_local_cluster(workers))
+        return _dask_mapper(opened[0], progress)(function, tasks, label, shared)
+
     if scheduler is not None:
-        if not _ADDRESS.fullmatch(scheduler):  # refused here: a Client built on it hangs 20 s at exit
-            raise ValueError(f"--scheduler {scheduler}: not a Dask scheduler address; expected tcp://host:8786 "
-                             "(what `dask scheduler` prints)")
-        try:
-            client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s", set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answered within {SCHEDULER_TIMEOUT_S} s "
-                             f"({' '.join(str(exc).split())[:160]})") from None
-    else:
-        # Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers, which makes glibc hand
-        # memory back on nearly every numpy free: measured 30 % slower circle fits (16.2 s against
-        # 12.4 s for campaigns/four_bolt_table6); the workers keep one BLAS thread each
-        environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
-                   if k != "MALLOC_TRIM_THRESHOLD_"}
-        settings: dict[str, object] = {"distributed.nanny.pre-spawn-environ": environ}
-        if sys.platform.startswith("linux"):
-            settings["distributed.worker.multiprocessing-method"] = "fork"
-        # dashboard on a free port: with None the scheduler's HTTP server still takes 8787, and a second
-        # workbench run beside the first warns (an error under pytest) and moves
-        with dask.config.set(settings), warnings.catch_warnings():
-            # the workers are forked from Dask's event-loop thread; Python 3.12+ warns of any fork of a
-            # threaded process, but the forked worker runs only its own event loop (Dask supports "fork")
-            warnings.filterwarnings("ignore", message=r".*multi-threaded, use of fork\(\)", category=DeprecationWarning)
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                   silence_logs=logging.ERROR)
-        client = Client(cluster, set_as_default=False)
+        opened.append(_scheduler_client(scheduler))
+    import dask
+
     try:
         # a task may carry a whole campaign (tens of MB) inside the graph on purpose: a task whose
         # worker died is then rerun elsewhere, which scattered data (lost with its worker) would not allow
         with dask.config.set({"distributed.admin.large-graph-warning-threshold": "500MB"}):
-            yield _dask_mapper(client, progress)
+            yield run
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        for part in opened:
+            part.close()
+
+
+def _scheduler_client(scheduler: str) -> Any:
+    """A client of the running scheduler at ``scheduler`` (`mapper`'s ValueError where none answers)."""
+    from distributed import Client  # only when work is handed out: its import takes a second
+
+    if not _ADDRESS.fullmatch(scheduler):  # refused here: a Client built on it hangs 20 s at exit
+        raise ValueError(f"--scheduler {scheduler}: not a Dask scheduler address; expected tcp://host:8786 "
+                         "(what `dask scheduler` prints)")
+    try:
+        return Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answered within {SCHEDULER_TIMEOUT_S} s "
+                         f"({' '.join(str(exc).split())[:160]})") from None
+
+
+def _local_cluster(workers: int) -> tuple[Any, Any]:
+    """``(client, cluster)``: a local cluster of ``workers`` single-threaded processes, forked on Linux."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    # Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers, which makes glibc hand
+    # memory back on nearly every numpy free: measured 30 % slower circle fits (16.2 s against
+    # 12.4 s for campaigns/four_bolt_table6); the workers keep one BLAS thread each
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
+               if k != "MALLOC_TRIM_THRESHOLD_"}
+    settings: dict[str, object] = {"distributed.nanny.pre-spawn-environ": environ}
+    if sys.platform.startswith("linux"):
+        # forked from this loaded process, a worker starts in a tenth of a second; spawned, it imports the
+        # package again (1-2 s). Its one BLAS thread is then `_one_blas_thread`'s, not the environment's
+        settings["distributed.worker.multiprocessing-method"] = "fork"
+    # dashboard on a free port: with None the scheduler's HTTP server still takes 8787, and a second
+    # workbench run beside the first warns (an error under pytest) and moves
+    with dask.config.set(settings), warnings.catch_warnings():
+        # the nannies fork from a helper thread; Python 3.12+ warns of any fork of a threaded process, but
+        # the forked worker runs only its own event loop (Dask supports "fork")
+        warnings.filterwarnings("ignore", message=r".*multi-threaded, use of fork\(\)", category=DeprecationWarning)
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR)
+    # the client closes first (`mapper` closes in order), then its cluster
+    return Client(cluster, set_as_default=False), cluster
 
 
 def _one_blas_thread(function: Callable[[Any, Any], Any], shared: Any, task: Any) -> Any:
