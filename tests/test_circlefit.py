@@ -332,19 +332,24 @@ def test_module_imports_neither_pandas_nor_matplotlib():
     assert done.stdout.strip() == "" and done.stderr == ""
 
 
-def test_the_three_line_inverse_gives_a_narrow_modes_frequency_and_damping_exactly():
+def test_the_peak_inverse_gives_a_narrow_modes_frequency_and_damping_exactly():
     """`peak_inverse` against the closed form: one viscous mode's mobility on lines four half-power bandwidths
-    apart, with a residual-free curve, gives back its natural frequency and damping to rounding."""
+    apart, with a residual-free curve, gives back its natural frequency and damping to rounding, also when the
+    curve's noise level is nil (its weights are relative); a ramp, or a line of magnitude 0, gives None."""
     from workbench.extraction.peak_inverse import peak_inverse
 
     f = np.arange(20.0, 23.6, 0.25)
+    omega = 2 * np.pi * f
     for fr, zeta in ((21.77, 0.0025), (21.74, 0.0005), (22.0, 0.004)):
-        omega, wr = 2 * np.pi * f, 2 * np.pi * fr
+        wr = 2 * np.pi * fr
         y = 1j * omega * (2.0 - 1.0j) / (wr**2 - omega**2 + 2j * zeta * wr * omega)
-        w_found, z_found, sd_w, sd_log = peak_inverse(omega, y, 1e-3 * np.abs(y).max())
-        assert w_found / (2 * np.pi) == pytest.approx(fr, rel=1e-9) and z_found == pytest.approx(zeta, rel=1e-6)
-        assert sd_w > 0 and sd_log > 0
-    assert peak_inverse(omega, y[::-1] * 0 + np.linspace(1, 2, f.size), 1e-3) is None  # a ramp has no peak
+        for noise in (1e-3 * np.abs(y).max(), 0.0):
+            w_found, z_found, sd_w, sd_log = peak_inverse(omega, y, noise)
+            assert w_found / (2 * np.pi) == pytest.approx(fr, rel=1e-9) and z_found == pytest.approx(zeta, rel=1e-6)
+            assert sd_w >= 0 and sd_log >= 0
+    assert peak_inverse(omega, np.linspace(1, 2, f.size) + 0j, 1e-3) is None  # a ramp has no peak
+    y[np.argmax(np.abs(y)) + 1] = 0.0
+    assert peak_inverse(omega, y, 1e-3) is None
 
 
 def test_a_mode_narrower_than_the_line_spacing_is_not_collapsed_onto_a_line():

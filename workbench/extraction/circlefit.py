@@ -84,8 +84,8 @@ a poor circle and with few lines across the peak. The damping interval spans bot
 mean and the least-squares ``zeta``, each widened by that half-width (their disagreement is the
 model-form term). Where the misfit is systematic (the close-mode trigger) the curve is distorted
 (leakage, a nonlinear joint) in a way no noise covariance sees: the half-power bandwidth is then
-taken as known to `LEAKAGE_LINES` lines only (`ModalFit.damping_model_form`). Measured coverage:
-``tests/test_close_modes.py``.
+taken as known to `LEAKAGE_LINES` lines only (`ModalFit.damping_model_form`), as for a mode narrower
+than the angles resolve (its intervals `peak_inverse`'s). Measured coverage: ``tests/test_close_modes.py``.
 """
 
 from __future__ import annotations
@@ -343,8 +343,8 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
 
 def _intervals(f_r: float, zeta: float, zeta_sweep: float, spread: tuple[float, float, int],
                model_form: float) -> tuple[tuple[float, float], tuple[float, float]]:
-    """95 % intervals of frequency (Hz) and damping from the joint refinement's covariance
-    (``spread = (sd omega_r rad/s, sd log zeta, dof)``), Student-t on its degrees of freedom.
+    """95 % intervals of frequency (Hz) and damping from the joint refinement's covariance, or from
+    `peak_inverse` (``spread = (sd omega_r rad/s, sd log zeta, dof)``), Student-t on its degrees of freedom.
 
     The damping interval spans both estimators, the reported pairwise mean ``zeta`` and the
     least-squares ``zeta_sweep``, each widened by the least-squares half-width (in log): their

@@ -24,7 +24,7 @@ from workbench.extraction.circle_geometry import sweep_angle
 __all__ = ["UNRESOLVED_LINES", "SIDE_LINES", "peak_inverse", "unresolved_peak", "peak_phase"]
 
 UNRESOLVED_LINES = 0.1  # a circle fit narrower than this many line spacings has collapsed onto a line
-SIDE_LINES = 2  # lines each side of the peak in the parabola: where one viscous mode's form is exact
+SIDE_LINES = 2  # lines each side of the peak in the parabola: nearest the peak, the least touched by neighbours
 
 
 def _solve(omega: np.ndarray, magnitude: np.ndarray, weight: np.ndarray) -> tuple[float, float, float] | None:
@@ -78,8 +78,13 @@ def peak_inverse(omega: np.ndarray, data: np.ndarray, noise: float) -> tuple[flo
         return None
     lines = slice(max(k - SIDE_LINES, 0), min(k + SIDE_LINES + 1, data.size))
     w, m = omega[lines], np.abs(data[lines])
-    sd = noise / np.sqrt(2.0)
-    weight = 1.0 / (2.0 * w**2 / m**3 * sd) ** 2  # var g = (dg/dm)^2 var m, g = w^2 / m^2
+    if not np.all(np.isfinite(m) & (m > 0.0)):
+        return None
+    # var g = (dg/dm)^2 var m, g = w^2 / m^2: the weights relative to the largest, so that a curve whose noise
+    # level is nil (a noise-free or zero-padded record) neither overflows them nor divides by it
+    weight = (m**3 / (2.0 * w**2)) ** 2
+    largest = float(weight.max())
+    weight = weight / largest
     found = _solve(w, m, weight)
     if found is None:
         return None
@@ -91,8 +96,10 @@ def peak_inverse(omega: np.ndarray, data: np.ndarray, noise: float) -> tuple[flo
         if up is None or down is None:
             return None
         jac[:, i] = [(up[0] - down[0]) / (2 * step[i]), (np.log(up[1]) - np.log(down[1])) / (2 * step[i])]
-    birge = max(1.0, float(np.sqrt(found[2] / (m.size - 3)))) if m.size > 3 else 1.0
-    spread = np.sqrt((jac**2).sum(axis=1)) * sd * birge
+    # the magnitudes' sd: the noise's, or what the lines' misfit to one mode's form says when larger (the noise
+    # times the Birge ratio sqrt(chi^2 / dof))
+    misfit = float(np.sqrt(largest * found[2] / (m.size - 3))) if m.size > 3 else 0.0
+    spread = np.sqrt((jac**2).sum(axis=1)) * max(noise / np.sqrt(2.0), misfit)
     return found[0], found[1], float(spread[0]), float(spread[1])
 
 

@@ -34,7 +34,8 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
     """The `Mapper` of ``workers`` local processes or of the Dask scheduler at ``scheduler``.
 
     The local cluster starts at the first call that hands out more than one task: a command that finds nothing
-    to hand out (a campaign of modes.csv, bad input) does not pay for it, and a single task runs here.
+    to hand out (a campaign of modes.csv, bad input) does not pay for it, and a single task before then runs
+    here. The mapper is for use inside the ``with`` block only.
 
     Raises
     ------
@@ -63,8 +64,12 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
         with dask.config.set({"distributed.admin.large-graph-warning-threshold": "500MB"}):
             yield run
     finally:
-        for part in opened:
-            part.close()
+        try:
+            if opened:
+                opened[0].close()  # the client, then (`_local_cluster`) its cluster, even if the client's close fails
+        finally:
+            for part in opened[1:]:
+                part.close()
 
 
 def _scheduler_client(scheduler: str) -> Any:
