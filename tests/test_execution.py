@@ -58,6 +58,24 @@ def test_circle_fits_give_the_same_modes_serially_and_on_a_scheduler(tmp_path, c
     assert found[0] == found[1] and len(found[0].splitlines()) > 2
 
 
+def test_a_local_cluster_started_on_demand_leaves_dask_configured():
+    """In a fresh process (distributed not yet imported), two tasks start the local cluster inside the mapper;
+    after it closes, distributed's configuration is still there. A "distributed.*" setting made before its
+    import once took the whole of it away as the setting ended, and the cluster failed as it closed (a
+    200-case validation lost at its end)."""
+    import subprocess
+    import sys
+
+    code = ("import dask, sys\n"
+            "from workbench.workflow.execution import mapper\n"
+            "assert 'distributed' not in sys.modules\n"
+            "with mapper(2) as run:\n"
+            "    assert run(lambda shared, task: task * 2, [1, 2], 'x', None) == [2, 4]\n"
+            "print(dask.config.get('distributed.scheduler.events-cleanup-delay'))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr[-2000:]
+
+
 def test_an_unreachable_scheduler_is_one_line_naming_it(tmp_path):
     start = time.perf_counter()
     code, err = run_cli(["propagate", str(FRAME), "--method", "mc", "--samples", "10", "--scheduler",

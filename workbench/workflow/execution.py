@@ -56,13 +56,8 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
 
     if scheduler is not None:
         opened.append(_scheduler_client(scheduler))
-    import dask
-
     try:
-        # a task may carry a whole campaign (tens of MB) inside the graph on purpose: a task whose
-        # worker died is then rerun elsewhere, which scattered data (lost with its worker) would not allow
-        with dask.config.set({"distributed.admin.large-graph-warning-threshold": "500MB"}):
-            yield run
+        yield run
     finally:
         try:
             if opened:
@@ -124,13 +119,19 @@ def _one_blas_thread(function: Callable[[Any, Any], Any], shared: Any, task: Any
 
 
 def _dask_mapper(client: Any, progress: Progress | None) -> Mapper:
+    import dask
     from distributed import as_completed
 
     def run(function: Callable[[Any, Any], Any], tasks: Sequence[Any], label: str, shared: Any) -> list[Any]:
         # one future for the whole shared object (scattering a tuple would scatter its items one by one)
         common = client.scatter([shared], broadcast=True)[0] if shared is not None else None
-        futures = [client.submit(_one_blas_thread, function, common, task, pure=False, retries=RETRIES)
-                   for task in tasks]
+        # a task may carry a whole campaign (tens of MB) inside the graph on purpose: a task whose worker died
+        # is then rerun elsewhere, which scattered data (lost with its worker) would not allow. Set here, with
+        # distributed loaded: a "distributed.*" key set before its import is dropped, with all of distributed's
+        # configuration, when the setting ends, and the cluster then fails as it closes
+        with dask.config.set({"distributed.admin.large-graph-warning-threshold": "500MB"}):
+            futures = [client.submit(_one_blas_thread, function, common, task, pure=False, retries=RETRIES)
+                       for task in tasks]
         index = {future.key: i for i, future in enumerate(futures)}
         results: list[Any] = [None] * len(futures)
         # as tasks end, in any order (the loop named: this client is not the process's default one)
