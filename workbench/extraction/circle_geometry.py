@@ -11,7 +11,7 @@ import numpy as np
 from workbench.extraction.levenberg import lm
 
 __all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "LOG_ZETA_BOUNDS", "taubin", "geometric", "pair_damping", "pairs",
-           "wrap_angle", "sweep_angle", "sweep_gradient", "clip_log_zeta", "trend_basis"]
+           "mobility_factor", "wrap_angle", "sweep_angle", "sweep_gradient", "clip_log_zeta", "trend_basis"]
 
 MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
 PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
@@ -94,6 +94,11 @@ def sweep_angle(omega, phi0: float, omega_r: float, zeta: float, sense: float):
     """
     x = (omega**2 - omega_r**2) / (2.0 * zeta * omega_r * omega)
     return phi0 - sense * 2.0 * np.arctan(x)
+
+
+def mobility_factor(quantity: str, omega: float) -> float:
+    """What turns a level of ``quantity`` at ``omega`` (rad/s) into mobility: ``omega``, 1 or ``1 / omega``."""
+    return {"receptance": omega, "mobility": 1.0, "accelerance": 1.0 / omega}[quantity]
 
 
 def trend_basis(omega: np.ndarray, omega_ref: float) -> np.ndarray:

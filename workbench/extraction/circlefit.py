@@ -98,6 +98,7 @@ from workbench.extraction.circle_geometry import (
     MIN_SIDE_POINTS,
     clip_log_zeta,
     geometric,
+    mobility_factor,
     pair_damping,
     pairs,
     sweep_angle,
@@ -426,11 +427,10 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     unresolved, found = bool(2.0 * zeta_sweep * omega_r < UNRESOLVED_LINES * np.median(np.diff(omega))), True
     if unresolved:  # the angles collapsed onto a line: the peak's magnitudes instead (`peak_inverse`)
         (centre, radius), trend = first, np.zeros_like(data)
-        w = float(omega[np.argmax(np.abs(data))])  # the peak line, where the noise is taken to mobility
-        to_mob = {"receptance": w, "mobility": 1.0, "accelerance": 1.0 / w}[quantity]
-        omega_r, zeta_sweep, spread, found = unresolved_peak(omega, data, curve_noise * to_mob)
+        peak_line = mobility_factor(quantity, float(omega[np.argmax(np.abs(data))]))  # the noise taken there
+        omega_r, zeta_sweep, spread, found = unresolved_peak(omega, data, curve_noise * peak_line)
         phi0, sense = peak_phase(omega, data, centre, omega_r, zeta_sweep)
-    to_mob = {"receptance": omega_r, "mobility": 1.0, "accelerance": 1.0 / omega_r}[quantity]
+    to_mob = mobility_factor(quantity, omega_r)
     y = data - trend
     psi = wrap_angle(np.angle(y - centre) - phi0)
     estimates, n_above, n_below = pairs(omega, psi, omega_r, sense)
