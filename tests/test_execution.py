@@ -113,9 +113,9 @@ def test_a_worker_killed_mid_run_changes_nothing(cluster):
 def test_validation_cases_are_the_same_with_and_without_a_scheduler(tmp_path, cluster):
     outputs = []
     for name, extra in (("serial", ("--workers", "1")), ("remote", ("--scheduler", cluster.scheduler_address))):
-        from workbench.cli import main  # not run_cli: four cases take longer than its hang alarm
+        from workbench.cli import main  # not run_cli: two cases take longer than its hang alarm
 
-        assert main(["validate-diagnosis", "--cases", "4", "--seed", "5", "--out", str(tmp_path / name), *extra]) == 0
+        assert main(["validate-diagnosis", "--cases", "2", "--seed", "5", "--out", str(tmp_path / name), *extra]) == 0
         rows = (tmp_path / name / "cases.csv").read_text().splitlines()
         outputs.append([row.rsplit(",", 1)[0] for row in rows])  # all but the wall time
     assert outputs[0] == outputs[1]
