@@ -160,7 +160,8 @@ def test_only_the_far_end_of_a_range_is_a_bound():
     # a support's rotational spring runs from soft to the file's clamp (its no-effect end), a joint's modulus
     # factor from 0.1 to 10 with 1 inside: the no-effect end is no bound, every other end is, the middle neither
     from workbench.diagnose.baseline import baseline
-    from workbench.diagnose.candidates import _support_curves, joint_curves
+    from workbench.diagnose.candidates import _support_sweeps, joint_sweeps
+    from workbench.diagnose.curves import solve_sweeps
     from workbench.diagnose.fitting import Frequencies
     from workbench.diagnose.observations import observations
 
@@ -168,8 +169,8 @@ def test_only_the_far_end_of_a_range_is_a_bound():
     levels = np.tile([1.0, 5.0], 3)  # two excitation levels, for the softening's range
     obs = observations(_data(frame, Effect("joint_stiffness_shift", "A", {"factor": 0.8}), amplitude=levels))
     base = baseline(frame, obs)
-    support = next(c for c in _support_curves(base) if c is not None and c.parameter == "rz")
-    joint = next(c for c in joint_curves(base) if c is not None)
+    support = next(c for c in solve_sweeps(base, _support_sweeps(base)) if c.parameter == "rz")
+    joint = solve_sweeps(base, joint_sweeps(base))[0]
     assert support.nominal == support.values[-1] and joint.nominal == pytest.approx(1.0)
     for curve, bounds in ((support, (True, False)), (joint, (True, True))):
         model = Frequencies(base, obs, curve)
@@ -704,14 +705,15 @@ def test_softening_is_nil_at_the_lowest_level_and_grows_with_it():
     # issue 14: amplitude softening is a law in the excitation level, nil at the lowest (the linear model
     # holds there), not a shift of every level
     from workbench.diagnose.baseline import baseline
-    from workbench.diagnose.candidates import joint_curves
+    from workbench.diagnose.candidates import joint_sweeps
+    from workbench.diagnose.curves import solve_sweeps
     from workbench.diagnose.fitting import Frequencies
 
     frame = _deterministic(ONE_BOLT)
     amplitude = np.array([2.0, 6.0, 10.0] * 2)
     obs = observations(_data(frame, Effect(), tests=6, amplitude=amplitude))
     base = baseline(frame, obs)
-    curve = joint_curves(base)[0]
+    curve = solve_sweeps(base, joint_sweeps(base))[0]
     nominal = base.frequency(base.modes.frequency_hz)
     model = Frequencies(base, obs, curve, amplitude_joint=True)
     predicted = model.predict(0.05)  # gamma = 1 - 0.05 (a / 2 - 1): 1, 0.9, 0.8

@@ -1,7 +1,8 @@
 """Which candidates the diagnosis fits: each effect of the registry at each place the frame allows.
 
 Every effect of `workbench.rig.effects.EFFECTS` that is a candidate, at each place of the kind it
-names, gets a grid of its parameter (`workbench.diagnose.curves.sweep`): a support's rotational
+names, gets a grid of its parameter (a `workbench.diagnose.curves.Sweep`, solved by
+`workbench.diagnose.curves.solve_sweeps`, on a `workbench.tasks.Mapper`'s workers): a support's rotational
 stiffness (clamped supports from a hundredth of the beam's EI / L up), the stinger's stiffness
 (around the drive point's static stiffness) and the mass that moves with the drive (a candidate only
 with the spring: `workbench.diagnose.verdict.PAIRED_ONLY`), each member's
@@ -27,7 +28,7 @@ from scipy.optimize import linear_sum_assignment, minimize_scalar
 from scipy.sparse.linalg import splu
 
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.curves import Curve, sweep
+from workbench.diagnose.curves import Curve, Sweep, solve_sweeps
 from workbench.diagnose.fitting import fit_curve
 from workbench.diagnose.localise import explained
 from workbench.diagnose.observations import Observations
@@ -42,8 +43,9 @@ from workbench.rig.effects import (
     STINGER_STIFFNESS,
     SUPPORT_COMPLIANCE,
 )
+from workbench.tasks import Mapper
 
-__all__ = ["GRID_POINTS", "drive_curves", "frame_curves", "joint_curves", "mass_scale", "members_at"]
+__all__ = ["GRID_POINTS", "drive_sweeps", "frame_curves", "joint_sweeps", "mass_scale", "members_at"]
 
 GRID_POINTS = 33
 RITZ_EXTRA = 20  # Ritz basis of the mass screen: this many modes beyond the measured ones
@@ -62,7 +64,7 @@ def _reference_bending(frame: Frame, point: str) -> tuple[float, float]:
     return _bending(frame, 0), member_length(frame, frame.members[0])
 
 
-def _support_curves(base: Baseline) -> list[Curve | None]:
+def _support_sweeps(base: Baseline) -> list[Sweep]:
     """Each support's rotational spring and, where held, each translational one, softened from the file's.
 
     A real clamp gives way in translation as well as in rotation (a bolted foot slides and rocks on its
@@ -71,7 +73,7 @@ def _support_curves(base: Baseline) -> list[Curve | None]:
     above the member's (its ``EI / L`` in rotation, ``EI / L^3`` in translation, up to the axial ``EA / L``).
     """
     frame, _ = base.planar
-    curves = []
+    grids = []
     for s in frame.supports:
         ei, length = _reference_bending(frame, s.point)
         for dof, reference, decades in (("rz", ei / length, (-2, 3)), ("ux", ei / length ** 3, (-1, 6)),
@@ -81,8 +83,8 @@ def _support_curves(base: Baseline) -> list[Curve | None]:
                 continue
             values = (reference * np.logspace(*decades, GRID_POINTS) if math.isinf(held)
                       else held * np.logspace(-3, 0, GRID_POINTS))
-            curves.append(sweep(base, SUPPORT_COMPLIANCE, s.point, values, values.size - 1, True, swept=dof))
-    return curves
+            grids.append(Sweep(SUPPORT_COMPLIANCE.name, s.point, values, values.size - 1, True, swept=dof))
+    return grids
 
 
 def mass_scale(mass: sp.spmatrix) -> float:
@@ -97,8 +99,7 @@ def mass_scale(mass: sp.spmatrix) -> float:
     return float(mass.diagonal()[0::3].sum())
 
 
-def drive_curves(base: Baseline, stiffness: sp.spmatrix, dof: int, where: str, fixed: dict,
-                 total_mass: float) -> list[Curve | None]:
+def drive_sweeps(stiffness: sp.spmatrix, dof: int, where: str, fixed: dict, total_mass: float) -> list[Sweep]:
     """The shaker's drive in its two forms at the drive point, each on the excitation's dof only (frames and
     matrix models).
 
@@ -111,7 +112,6 @@ def drive_curves(base: Baseline, stiffness: sp.spmatrix, dof: int, where: str, f
 
     Parameters
     ----------
-    base : the baseline.
     stiffness : (n, n) the model's stiffness matrix, N/m (its free dofs).
     dof : the excitation's index among them.
     where : the drive point's name (a frame's point, a matrix model's ``"node N"``).
@@ -120,27 +120,27 @@ def drive_curves(base: Baseline, stiffness: sp.spmatrix, dof: int, where: str, f
 
     Returns
     -------
-    [the spring's curve (N/m), the moving mass's curve (kg)], each None where it could not be solved.
+    [the spring's grid (N/m), the moving mass's grid (kg)].
     """
     unit = np.zeros(stiffness.shape[0])
     unit[dof] = 1.0
     k_static = 1.0 / float(splu(stiffness.tocsc()).solve(unit)[dof])
     springs = k_static * np.logspace(-4, 1, GRID_POINTS)
     masses = total_mass * np.logspace(-3.5, 0, GRID_POINTS)
-    return [sweep(base, STINGER_STIFFNESS, where, springs, 0, True, fixed),
-            sweep(base, STINGER_STIFFNESS, where, masses, 0, True, fixed, swept="moving_mass")]
+    return [Sweep(STINGER_STIFFNESS.name, where, springs, 0, True, dict(fixed)),
+            Sweep(STINGER_STIFFNESS.name, where, masses, 0, True, dict(fixed), swept="moving_mass")]
 
 
-def _stinger_curves(base: Baseline) -> list[Curve | None]:
+def _stinger_sweeps(base: Baseline) -> list[Sweep]:
     frame, model = base.planar
     excitation = frame.excitation
     if excitation is None:
         return []
-    return drive_curves(base, model.stiffness(), model.dof(excitation.point, excitation.dof), excitation.point,
+    return drive_sweeps(model.stiffness(), model.dof(excitation.point, excitation.dof), excitation.point,
                         {"dof": excitation.dof}, mass_scale(model.mass))
 
 
-def _axial_curves(base: Baseline) -> list[Curve | None]:
+def _axial_sweeps(base: Baseline) -> list[Sweep]:
     """Each member's axial force in its two forms, from its pin-ended Euler load ``pi^2 EI / L^2``.
 
     Carried through the frame (a load, a support's reaction: the member's sway is softened, P-delta) or
@@ -149,43 +149,45 @@ def _axial_curves(base: Baseline) -> list[Curve | None]:
     buckles). The two move the sway modes by factors of ten apart for the same bending modes.
     """
     frame, _ = base.planar
-    curves = []
+    grids = []
     for i, m in enumerate(frame.members):
         euler = math.pi ** 2 * _bending(frame, i) / member_length(frame, m) ** 2
         for reaction, lowest in (("frame", -0.6), ("chord", -1.5)):
             values = np.unique(np.concatenate([np.linspace(lowest, 0.0, 10), np.linspace(0.0, 2.0, 16)])) * euler
-            curves.append(sweep(base, AXIAL_PRESTRESS, m.name, values, int(np.flatnonzero(values == 0.0)[0]),
-                                False, {"reaction": reaction}))
-    return curves
+            grids.append(Sweep(AXIAL_PRESTRESS.name, m.name, values, int(np.flatnonzero(values == 0.0)[0]), False,
+                                {"reaction": reaction}))
+    return grids
 
 
-def joint_curves(base: Baseline) -> list[Curve | None]:
+def joint_sweeps(base: Baseline) -> list[Sweep]:
     """Each joint's modulus factor from 0.1 to 10, and every joint's at once (frames and matrix models)."""
     values = np.logspace(-1, 1, 2 * (GRID_POINTS // 2) + 1)
-    curves = [sweep(base, JOINT_STIFFNESS_SHIFT, j, values, values.size // 2, True) for j in base.frame.joint_names]
+    grids = [Sweep(JOINT_STIFFNESS_SHIFT.name, j, values, values.size // 2, True) for j in base.frame.joint_names]
     if len(base.frame.joint_names) > 1:  # every joint at once (where null): the file's joint model itself is off
-        curves.append(sweep(base, JOINT_STIFFNESS_SHIFT, None, values, values.size // 2, True))
-    return curves
+        grids.append(Sweep(JOINT_STIFFNESS_SHIFT.name, None, values, values.size // 2, True))
+    return grids
 
 
-def _shear_curves(base: Baseline) -> list[Curve | None]:
+def _shear_sweeps(base: Baseline) -> list[Sweep]:
     frame, _ = base.planar
     if frame.beam_theory == "timoshenko":
         return []
     kappa = next((s.shear_coefficient for s in frame.sections.values() if s.shear_coefficient), 5.0 / 6.0)
     values = kappa * np.logspace(-1.5, 2, GRID_POINTS)
-    return [sweep(base, SHEAR_DEFORMATION, None, values, values.size - 1, True)]
+    return [Sweep(SHEAR_DEFORMATION.name, None, values, values.size - 1, True)]
 
 
-def frame_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray) -> list[Curve]:
-    """One curve per frame-level candidate and place the frame allows (module docstring).
+def frame_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray,
+                 mapper: Mapper | None = None) -> list[Curve]:
+    """One curve per frame-level candidate and place the frame allows (module docstring), those that could be
+    solved.
 
     ``residual`` (n_measured,) relative frequency residual of the baseline and ``weight`` its
-    inverse relative variance, for the added mass's screen.
+    inverse relative variance, for the added mass's screen; ``mapper`` solves the grids (`solve_sweeps`).
     """
-    curves = (_support_curves(base) + _stinger_curves(base) + _axial_curves(base) + joint_curves(base)
-              + _shear_curves(base) + _mass_curves(base, obs, residual, weight))
-    return [c for c in curves if c is not None]
+    grids = (_support_sweeps(base) + _stinger_sweeps(base) + _axial_sweeps(base) + joint_sweeps(base)
+             + _shear_sweeps(base) + _mass_sweeps(base, obs, residual, weight))
+    return solve_sweeps(base, grids, mapper)
 
 
 def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray, reach_m: float,
@@ -203,9 +205,9 @@ def _best_near(base: Baseline, obs: Observations, node: int, coarse: np.ndarray,
     return best, best_cost
 
 
-def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray,
-                 keep: int = 3, reach_m: float = 0.03) -> list[Curve | None]:
-    """Added-mass curves at the few positions whose mass sensitivity best fits the residual.
+def _mass_sweeps(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray,
+                 keep: int = 3, reach_m: float = 0.03) -> list[Sweep]:
+    """Added-mass grids at the few positions whose mass sensitivity best fits the residual.
 
     The first-order screen ranks every mesh node; around each of the ``keep`` best (5 cm apart),
     the nodes within ``reach_m`` are fitted on a coarse exact grid and the best one gets the
@@ -220,7 +222,7 @@ def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
     coarse = total_mass * np.logspace(-3.5, 0, 13)
     basis = _ritz_basis(base)
     chosen: list[int] = []
-    curves: list[Curve | None] = []
+    grids: list[Sweep] = []
     for node in np.argsort(scores)[::-1]:
         if len(chosen) == keep:
             break
@@ -238,8 +240,8 @@ def _mass_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight
                     best, best_cost = refined, cost
         if best is not None:
             values = total_mass * np.logspace(-3.5, 0, GRID_POINTS)
-            curves.append(sweep(base, ADDED_MASS, best[0], values, 0, True, best[1]))
-    return curves
+            grids.append(Sweep(ADDED_MASS.name, best[0], values, 0, True, dict(best[1])))
+    return grids
 
 
 def _mass_cost(base: Baseline, obs: Observations, where: str, fixed: dict, masses: np.ndarray,

@@ -131,7 +131,7 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, s
 
 def form_pairs(models: list[Frequencies], effect: str) -> list[tuple[Frequencies, Frequencies]]:
     """Every two forms of ``effect`` at one place among ``models``: one effect with two parameters (a support's
-    two dofs; the drive's spring and the mass moving with it, `workbench.diagnose.candidates.drive_curves`).
+    two dofs; the drive's spring and the mass moving with it, `workbench.diagnose.candidates.drive_sweeps`).
 
     A clamp gives way in rotation and in translation at once (a foot plate that rocks and slides, a base whose
     compliance sits below the node and couples the two); one spring at a time fits such a support only as well

@@ -3,7 +3,9 @@
 Each candidate is the nominal frame changed by `workbench.rig.effects.apply_effect` (a matrix
 model by `apply_matrix_effect`) with one parameter. The frequencies are computed exactly at each
 grid value, tracked by MAC from the no-effect end outward, and interpolated by a cubic spline in
-the parameter (or its logarithm), so that fits are then cheap.
+the parameter (or its logarithm), so that fits are then cheap. Each grid is a `Sweep`, a task that
+`solve_sweeps` hands to a `workbench.tasks.Mapper`: the grids are independent, and on a 12-test campaign
+they are most of the diagnosis's time.
 """
 
 from __future__ import annotations
@@ -23,10 +25,11 @@ from workbench.model.assembly import assemble
 from workbench.model.matrix_model import MatrixModel
 from workbench.model.modal import SHIFT, Modes, solve_modes
 from workbench.model.structure import Structure
-from workbench.rig.effects import Effect, EffectKind, apply_effect, apply_matrix_effect
+from workbench.rig.effects import EFFECTS, Effect, EffectKind, apply_effect, apply_matrix_effect
+from workbench.tasks import Mapper, serial
 from workbench.uq.stochastic import track_modes
 
-__all__ = ["Curve", "sweep"]
+__all__ = ["Curve", "Sweep", "solve_sweeps", "sweep"]
 
 RITZ_COLUMNS = 40  # a linear change touching more dofs enters the basis by the loads it puts on the modes
 RITZ_KRYLOV = 4  # block Krylov levels of the changed dofs in the Ritz basis
@@ -259,3 +262,31 @@ def _exact_sweep(solve: Callable[[float], tuple[sp.spmatrix, Modes]], values: np
             out[i] = previous.frequency_hz
             i += direction
     return out
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """One candidate's grid: `sweep`'s arguments but the baseline (a task `solve_sweeps` hands out).
+
+    ``effect`` is the effect's name in `workbench.rig.effects.EFFECTS`; the rest as in `sweep`.
+    """
+
+    effect: str
+    where: str | None
+    values: np.ndarray
+    start: int
+    log: bool
+    fixed: dict = field(default_factory=dict)
+    swept: str | None = None
+
+
+def _solve_sweep(base: Baseline, task: Sweep) -> Curve | None:
+    return sweep(base, EFFECTS[task.effect], task.where, task.values, task.start, task.log, task.fixed, task.swept)
+
+
+def solve_sweeps(base: Baseline, tasks: list[Sweep], mapper: Mapper | None = None) -> list[Curve]:
+    """The curves of ``tasks`` that could be solved, in their order, each grid a task of ``mapper`` (default:
+    one after the other in this process) with ``base`` shared.
+    """
+    curves = (mapper or serial)(_solve_sweep, tasks, "candidate grids", base)
+    return [c for c in curves if c is not None]

@@ -2,11 +2,11 @@
 
 A matrix model has no members, supports or sections, so support compliance, shear deformation and
 axial prestress are not candidates. What remains, each on a grid of its parameter like a frame's
-(`workbench.diagnose.curves.sweep`, the model changed by `workbench.rig.effects.apply_matrix_effect`):
+(a `workbench.diagnose.curves.Sweep`, the model changed by `workbench.rig.effects.apply_matrix_effect`):
 
 - each joint's modulus factor (0.1 to 10), and every joint at once;
 - the shaker's drive at the excitation's dof: its spring, around the drive point's static stiffness, alone or
-  with the mass moving with it (`workbench.diagnose.candidates.drive_curves`; the mass is no candidate alone,
+  with the mass moving with it (`workbench.diagnose.candidates.drive_sweeps`; the mass is no candidate alone,
   `workbench.diagnose.verdict.PAIRED_ONLY`);
 - an added mass (on a node's translations) at the few nodes where a mass best explains the
   residual with the modes held fixed (`_mass_screen`), 5 cm apart when the dof table gives
@@ -20,12 +20,13 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.candidates import GRID_POINTS, drive_curves, joint_curves
-from workbench.diagnose.curves import Curve, sweep
+from workbench.diagnose.candidates import GRID_POINTS, drive_sweeps, joint_sweeps
+from workbench.diagnose.curves import Curve, Sweep, solve_sweeps
 from workbench.diagnose.localise import node_translation
 from workbench.diagnose.observations import Observations
 from workbench.model.matrix_model import MatrixModel
 from workbench.rig.effects import ADDED_MASS, TRANSLATIONS, node_name
+from workbench.tasks import Mapper
 
 __all__ = ["matrix_curves"]
 
@@ -33,10 +34,10 @@ MASS_PLACES = 3  # nodes given an added-mass curve
 MASS_SPACING_M = 0.05  # between them, when the dof table has coordinates
 
 
-def _stinger_curves(base: Baseline, model: MatrixModel) -> list[Curve | None]:
+def _stinger_sweeps(model: MatrixModel) -> list[Sweep]:
     if model.excitation is None:
         return []
-    return drive_curves(base, model.stiffness(), model.excitation, node_name(model.dofs.nodes[model.excitation]), {},
+    return drive_sweeps(model.stiffness(), model.excitation, node_name(model.dofs.nodes[model.excitation]), {},
                         _translating_mass(model))
 
 
@@ -64,7 +65,7 @@ def _mass_screen(nodes: np.ndarray, translation: np.ndarray, masses: np.ndarray,
     return misfit.min(axis=1)
 
 
-def _mass_curves(base: Baseline, model: MatrixModel, residual: np.ndarray, weight: np.ndarray) -> list[Curve | None]:
+def _mass_sweeps(base: Baseline, model: MatrixModel, residual: np.ndarray, weight: np.ndarray) -> list[Sweep]:
     nodes, translation = node_translation(model, base.modes.shapes[:, base.pairing])
     total = _translating_mass(model)
     misfit = _mass_screen(nodes, translation, total * np.logspace(-3.5, 0, 60), residual, weight)
@@ -75,7 +76,7 @@ def _mass_curves(base: Baseline, model: MatrixModel, residual: np.ndarray, weigh
             where.setdefault(int(node), coordinates[row])
     values = total * np.logspace(-3.5, 0, GRID_POINTS)
     chosen: list[int] = []
-    curves: list[Curve | None] = []
+    grids: list[Sweep] = []
     for i in np.argsort(misfit):
         if len(chosen) == MASS_PLACES:
             break
@@ -83,18 +84,20 @@ def _mass_curves(base: Baseline, model: MatrixModel, residual: np.ndarray, weigh
         if where and any(np.linalg.norm(where[node] - where[c]) < MASS_SPACING_M for c in chosen):
             continue
         chosen.append(node)
-        curves.append(sweep(base, ADDED_MASS, node_name(node), values, 0, True))
-    return curves
+        grids.append(Sweep(ADDED_MASS.name, node_name(node), values, 0, True))
+    return grids
 
 
-def matrix_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray) -> list[Curve]:
-    """One curve per candidate and place a matrix model allows (module docstring).
+def matrix_curves(base: Baseline, obs: Observations, residual: np.ndarray, weight: np.ndarray,
+                  mapper: Mapper | None = None) -> list[Curve]:
+    """One curve per candidate and place a matrix model allows (module docstring), those that could be solved.
 
     ``residual`` (n_measured,) relative frequency residual of the baseline and ``weight`` its
-    inverse relative variance, for the added mass's screen.
+    inverse relative variance, for the added mass's screen; ``mapper`` solves the grids
+    (`workbench.diagnose.curves.solve_sweeps`).
     """
     model = base.frame
     if not isinstance(model, MatrixModel):
         raise TypeError("matrix_curves: the baseline is a frame's; use frame_curves")
-    curves = _stinger_curves(base, model) + joint_curves(base) + _mass_curves(base, model, residual, weight)
-    return [c for c in curves if c is not None]
+    grids = _stinger_sweeps(model) + joint_sweeps(base) + _mass_sweeps(base, model, residual, weight)
+    return solve_sweeps(base, grids, mapper)

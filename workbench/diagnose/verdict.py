@@ -72,6 +72,7 @@ from workbench.rig.effects import (
     SUPPORT_COMPLIANCE,
     UNEXPLAINED,
 )
+from workbench.tasks import Mapper
 
 __all__ = ["Diagnosis", "diagnose", "diagnosis_record"]
 
@@ -210,7 +211,8 @@ def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: n
 
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
-             relative_floor: float = RELATIVE_FLOOR, damping_floor: float = DAMPING_FLOOR) -> Diagnosis:
+             relative_floor: float = RELATIVE_FLOOR, damping_floor: float = DAMPING_FLOOR,
+             mapper: Mapper | None = None) -> Diagnosis:
     """Locate, name and measure the gap between ``frame`` and a campaign's modes (module docstring).
 
     Parameters
@@ -220,6 +222,8 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     notify : called with a short message before each stage.
     relative_floor, damping_floor : floors of the relative standard errors of the mean frequencies
         and damping ratios (`workbench.diagnose.observations`).
+    mapper : solves the candidates' grids (`workbench.diagnose.curves.solve_sweeps`; default, one after the
+        other); the verdict is the same on any.
 
     Returns
     -------
@@ -232,11 +236,11 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
         return _diagnose(frame, measured, say=notify or (lambda message: None), relative_floor=relative_floor,
-                         damping_floor=damping_floor)
+                         damping_floor=damping_floor, mapper=mapper)
 
 
 def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable[[str], None],
-              relative_floor: float, damping_floor: float) -> Diagnosis:
+              relative_floor: float, damping_floor: float, mapper: Mapper | None) -> Diagnosis:
     """`diagnose`'s work."""
     start = time.perf_counter()
     obs = observations(measured, relative_floor, damping_floor)
@@ -261,8 +265,8 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     regions = localise(base, obs, baseline_hz, damping_residual, shares)
 
     say("candidate effects: exact frequencies on parameter grids")
-    curves = (matrix_curves(base, obs, residual, weight) if isinstance(frame, MatrixModel)
-              else frame_curves(base, obs, residual, weight))
+    curves = (matrix_curves(base, obs, residual, weight, mapper) if isinstance(frame, MatrixModel)
+              else frame_curves(base, obs, residual, weight, mapper))
     ranking, predictions, models, groups = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping,
                                                            shares[0])
     null = frequency_null(obs, ranking, groups)

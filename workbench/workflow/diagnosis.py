@@ -51,14 +51,14 @@ def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callab
     path : the campaign directory (modes.csv, FRFs, or moments.csv).
     count : use at most the first ``count`` modes.
     notify : called with a short message before each stage.
-    mapper : runs the bands' votes and the tests' circle fits (`workbench.tasks.Mapper`); default, one after the
-        other.
+    mapper : runs the bands' votes, the tests' circle fits and the candidates' grids (`workbench.tasks.Mapper`);
+        default, one after the other.
     """
     campaign = load_campaign(path)
     if notify:
         notify("modes of every test (modes.csv or circle fit)")
     measured = measured_modes(campaign, count, "diagnose", mapper)
-    result = diagnose(campaign.frame, measured, notify)
+    result = diagnose(campaign.frame, measured, notify, mapper=mapper)
     record = diagnosis_record(campaign.name, result)
     record["synthetic"] = bool(campaign.synthetic)
     return CampaignDiagnosis(campaign, result, record)
