@@ -34,8 +34,8 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
     """The `Mapper` of ``workers`` local processes or of the Dask scheduler at ``scheduler``.
 
     The local cluster starts at the first call that hands out more than one task: a command that finds nothing
-    to hand out (a campaign of modes.csv, bad input) does not pay for it, and a single task before then runs
-    here. The mapper is for use inside the ``with`` block only.
+    to hand out (bad input, an identification of a modes.csv campaign) does not pay for it, and a single task
+    before then runs here. (``diagnose`` always hands out its candidates' grids.) The mapper is for use inside the ``with`` block only.
 
     Raises
     ------
