@@ -20,6 +20,8 @@ from __future__ import annotations
 import ast
 import json
 import math
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -29,7 +31,7 @@ from scipy.optimize import brentq
 
 from workbench.io.campaign import campaign_files
 from workbench.model.frame import member_length
-from workbench.model.frame_file import parse_frame
+from workbench.model.frame_file import parse_frame, read_frame
 from workbench.proving.article import Article, Dashpot, Softening
 from workbench.proving.beams import BeamSet, assemble, beam_local, beam_matrices, damped_modes, frf, solve_modes
 from workbench.proving.campaigns import CampaignSettings, simulate_campaign
@@ -47,18 +49,20 @@ from workbench.proving.cases import (
 )
 from workbench.proving.fem import discretise
 from workbench.proving.footprint import article_frequencies, calibrate, footprint
-from workbench.proving.frames import FRAME_NAMES, FRAMES_DIR, proving_frame
+from workbench.proving.frames import BUNDLED, FRAME_NAMES, proving_frame
 from workbench.proving.mechanisms import EFFECTS, NONE, OUTSIDE, VARIANTS, vocabulary_mechanism
 from workbench.proving.outside import OUTSIDE_VARIANTS, outside_mechanism
 
-PROVING = Path(__file__).resolve().parents[1] / "workbench" / "proving"
+REPO = Path(__file__).resolve().parents[1]
+PROVING = REPO / "workbench" / "proving"
 # the workbench code under test: the proving ground must not share its physics (an inverse crime)
 FORBIDDEN = ("workbench.rig", "workbench.model.assembly", "workbench.model.elements", "workbench.model.modal",
              "workbench.model.joints", "workbench.model.pattern", "workbench.model.structure",
              "workbench.model.generate", "workbench.uq", "workbench.diagnose", "workbench.identify",
              "workbench.extraction", "workbench.workflow")
-ALLOWED = ("workbench.model.frame", "workbench.model.frame_file", "workbench.io.campaign", "workbench.progress",
-           "workbench.proving")
+# paper_frames: the bundled frame files' text, built (geometry and materials, no physics), as the files held it
+ALLOWED = ("workbench.model.frame", "workbench.model.frame_file", "workbench.model.paper_frames",
+           "workbench.io.campaign", "workbench.progress", "workbench.proving")
 PANDAS_MODULES = ("campaigns.py", "cases.py")
 
 E, NU, RHO, KAPPA = 210e9, 0.3, 7850.0, 5.0 / 6.0
@@ -464,7 +468,24 @@ def test_a_wire_tie_capped_by_its_strength_is_faint_not_medium():
 
 def test_every_variant_is_known():
     assert sum(len(v) for v in VARIANTS.values()) == 12 and set(VARIANTS) == set(EFFECTS)
-    assert {p.stem for p in FRAMES_DIR.glob("*.toml")} >= {"two_bolt", "four_bolt", "one_bolt_vertical"}
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_bundled_frames_are_the_repository_files(name):
+    # built, not read (an installed package has no frames/ beside it), and yet what the file says in every field
+    built = proving_frame(name)
+    read = read_frame(REPO / "frames" / f"{name}.toml")
+    assert replace(built, source="") == replace(read, source="")
+
+
+def test_the_installed_package_builds_every_frame(tmp_path):
+    # outside the repository, the package as installed (`pip install .` copies no frames/): validate-diagnosis
+    # read frames/*.toml beside the package and failed on every install but an editable one
+    code = ("from workbench.proving.frames import FRAME_NAMES, proving_frame; "
+            "print(len([proving_frame(n) for n in FRAME_NAMES]))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == str(len(FRAME_NAMES))
 
 
 # ------------------------------------------------------------------------------------- the workbench reads it

@@ -35,7 +35,8 @@ def mapper(workers: int = 1, scheduler: str | None = None, progress: Progress | 
 
     The local cluster starts at the first call that hands out more than one task: a command that finds nothing
     to hand out (bad input, an identification of a modes.csv campaign) does not pay for it, and a single task
-    before then runs here. (``diagnose`` always hands out its candidates' grids.) The mapper is for use inside the ``with`` block only.
+    before then runs here (``diagnose`` always hands out its candidates' grids). The mapper is for use inside the
+    ``with`` block only.
 
     Raises
     ------
