@@ -35,6 +35,7 @@ def test_a_tie_across_a_column_is_a_force_locked_in_between_its_ends():
     assert named.parameters["axial_force"] == pytest.approx(tie_force, rel=0.1)
 
 
+@pytest.mark.slow
 def test_a_dashpot_across_a_joint_is_named_as_viscous_joint_damping():
     result, _ = _diagnosed(CaseSpec(0, 1, "two_bolt", "joint_damping", "large", "joint_dashpot", "B"))
     assert (result.verdict, result.where) == ("joint_damping", "B")
@@ -42,6 +43,7 @@ def test_a_dashpot_across_a_joint_is_named_as_viscous_joint_damping():
     assert damping[0].form == "viscous"
 
 
+@pytest.mark.slow
 def test_a_clamp_that_gives_way_in_rotation_and_translation_is_a_two_dof_support():
     # the proving ground's clamp: translational springs below the node and a rotational one, a 3x3 stiffness with
     # translation-rotation coupling, loosened as a whole. One spring at a time fits it worse than the rotational

@@ -36,8 +36,13 @@ SQUARE = {
 @pytest.fixture(scope="module")
 def square():
     frame = parse_frame(SQUARE)
-    model = assemble(frame)
-    return model, joint_model(frame), monte_carlo(model, joint_model(frame), 8, 2000, seed=3)
+    return assemble(frame), joint_model(frame)
+
+
+@pytest.fixture(scope="module")
+def square_mc(square):
+    model, joints = square
+    return model, joints, monte_carlo(model, joints, 8, 2000, seed=3)  # 20 s: the slow checks only
 
 
 def test_the_square_frame_has_symmetric_pairs():
@@ -46,9 +51,10 @@ def test_the_square_frame_has_symmetric_pairs():
     assert [list(g) for g in groups] == [[1, 2], [5, 6]]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["smr1", "smr2", "adaptive"])
-def test_smr_on_the_shared_subspace_agrees_with_monte_carlo(square, method):
-    model, joints, mc = square
+def test_smr_on_the_shared_subspace_agrees_with_monte_carlo(square_mc, method):
+    model, joints, mc = square_mc
     result = propagate(model, joints, method, count=8)
     mean_se, std_se = mc.standard_errors()
     assert np.all(np.isfinite(result.mean_hz)) and np.all(np.isfinite(result.std_hz))
@@ -89,7 +95,7 @@ def test_pert2_refuses_a_repeated_eigenvalue_naming_the_modes(tmp_path):
 def test_smr1_solves_past_its_last_mode_only_when_a_pair_straddles_the_cut(square, monkeypatch):
     from workbench.uq import smr
 
-    model, joints, _ = square
+    model, joints = square
     assert model.size > smr.DENSE_LIMIT  # the Sturm-count path, not the dense one
     full = propagate(model, joints, "smr1", count=8)
     solved = []

@@ -168,6 +168,7 @@ def test_existing_report_is_kept_without_force(report, capsys):
     assert (out / "index.html").read_bytes() == before
 
 
+@pytest.mark.slow
 def test_section5_measured_columns_are_the_nan_aware_statistics_of_the_circle_fits(tmp_path):
     directory = rig_campaign(tmp_path / "two_bolt", "two_bolt", {"A": "vertical", "B": "horizontal"}, seed=12)
     campaign, extraction = load_and_extract(directory)
@@ -396,6 +397,7 @@ def test_report_reads_modes_csv_instead_of_a_circle_fit(with_modes_csv, tmp_path
     check_units(text)
 
 
+@pytest.mark.slow
 def test_report_bands_set_the_circle_fit(with_modes_csv, tmp_path, capsys):
     directory, _ = with_modes_csv
     out = tmp_path / "r"
