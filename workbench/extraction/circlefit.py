@@ -90,6 +90,7 @@ than the angles resolve (its intervals `peak_inverse`'s). Measured coverage: ``t
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -109,7 +110,7 @@ from workbench.extraction.circle_geometry import (
 )
 from workbench.extraction.levenberg import lm
 from workbench.extraction.multimode import inverse_normal, noise_level, second_mode, t975
-from workbench.extraction.peak_inverse import UNRESOLVED_LINES, peak_phase, unresolved_peak
+from workbench.extraction.peak_inverse import UNRESOLVED_LINES, peak_inverse, peak_phase, unresolved_peak
 
 __all__ = [
     "QUANTITIES", "FLAGS", "WEAK_FACTOR", "POOR_CIRCLE", "CLOSE_CORRELATION", "CLOSE_EXCESS", "CLOSE_FLOOR",
@@ -250,19 +251,41 @@ def to_mobility(frequency_hz: np.ndarray, frf: np.ndarray, quantity: str) -> np.
 # --------------------------------------------------------------------------------------------
 # circle and sweep
 
-def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float, float]:
+def _fit_sweep(omega: np.ndarray, phi: np.ndarray,
+               peak_start: Callable[[], tuple[float, float, float, float] | None] | None = None,
+               ) -> tuple[float, float, float, float]:
     """Natural frequency, damping and diameter angle from the angles ``phi`` (rad) of the points
     seen from the centre: start where the sweep is fastest, then least squares on the exact
     one-mode angle model. Returns (phi0, omega_r, zeta, sense): ``sense`` +1 for a clockwise sweep
     (exp(+i omega t)), -1 for data in the other convention, tried when the clockwise fit misses the
     angles by more than `SENSE_RETRY` rad RMS (the direction cannot be read off the data: a mode
     resolved by one or two lines steps by nearly pi).
+
+    Before the other sense, ``peak_start()`` (`_peak_sweep_start`: the start the peak's magnitudes
+    give, or None) is tried: a mode a third or half a line wide can turn by more than pi between the
+    two lines at its peak, and the wrapped steps then put the fastest rate, so every start read off
+    the steps, on the wrong line (the fit ended 2 Hz away, flagged ``edge_of_band``, in 45 % of such
+    fits: ``tests/test_circlefit.py``). Fits the steps' starts already fit are left as they were.
     """
     step = wrap_angle(np.diff(phi))
     mid = 0.5 * (omega[1:] + omega[:-1])
     best, best_sense, scale = None, 1.0, 1.0
+
+    def attempt(phi0: float, w0: float, z0: float, sense: float) -> None:
+        nonlocal best, best_sense, scale
+
+        def residual(p):
+            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(clip_log_zeta(p[2])), sense))
+
+        def jacobian(p):
+            return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
+
+        sol = lm(residual, [phi0, 1.0, np.log(z0)], jacobian, xtol=1e-15, ftol=1e-15)
+        if best is None or sol.cost < best.cost:
+            best, best_sense, scale = sol, sense, w0
+
     for sense in (1.0, -1.0):
-        if best is not None and np.sqrt(2.0 * best.cost / phi.size) < SENSE_RETRY:
+        if best is not None and _angle_rms(best, phi) < SENSE_RETRY:
             break  # the contract's clockwise sweep fits: no need to try the other way
         rate = -sense * step / np.diff(omega)
         k = int(np.argmax(rate))
@@ -273,22 +296,37 @@ def _fit_sweep(omega: np.ndarray, phi: np.ndarray) -> tuple[float, float, float,
                 w0 = float(np.clip(-c[1] / (2 * c[0]), mid[k - 1], mid[k + 1]))
         zeta0 = float(np.clip(2.0 / (w0 * max(float(rate[k]), 1e-300)), 1e-6, 0.5))
         phi0 = float(phi[k] - sense * step[k] / 2)
-
-        def residual(p, sense=sense, w0=w0):
-            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(clip_log_zeta(p[2])), sense))
-
-        def jacobian(p, sense=sense, w0=w0):
-            return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
-
         for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
-            sol = lm(residual, [phi0, 1.0, np.log(z0)], jacobian, xtol=1e-15, ftol=1e-15)
-            if best is None or sol.cost < best.cost:
-                best, best_sense, scale = sol, sense, w0
-    assert best is not None  # three starts always ran
+            attempt(phi0, w0, z0, sense)
+        assert best is not None  # three starts always ran
+        if sense > 0 and peak_start is not None and _angle_rms(best, phi) >= SENSE_RETRY:
+            start = peak_start()
+            if start is not None:
+                attempt(start[0], start[1], start[2], start[3])
+    assert best is not None
     zeta = float(np.exp(clip_log_zeta(best.x[2])))
     # a negative omega_r is the same angle model swept the other way: keep omega_r positive
     flip = 1.0 if best.x[1] >= 0.0 else -1.0
     return float(best.x[0]), float(flip * best.x[1] * scale), zeta, flip * best_sense
+
+
+def _angle_rms(fit, phi: np.ndarray) -> float:
+    """RMS angle misfit (rad) of a sweep fit over the angles ``phi``."""
+    return float(np.sqrt(2.0 * fit.cost / phi.size))
+
+
+def _peak_sweep_start(omega: np.ndarray, data: np.ndarray, centre: complex,
+                      noise: float) -> tuple[float, float, float, float] | None:
+    """``(phi0, omega_r, zeta, sense)`` from the magnitudes at the peak (`peak_inverse`) where they are one mode's,
+    else None: the start of `_fit_sweep` that does not read the angles' steps. ``noise``: the curve's noise in
+    mobility units at the peak.
+    """
+    peak = peak_inverse(omega, data, noise)
+    if peak is None:
+        return None
+    omega_r, zeta = peak[0], peak[1]
+    phi0, sense = peak_phase(omega, data, centre, omega_r, zeta)
+    return phi0, omega_r, zeta, sense
 
 
 def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
@@ -420,7 +458,9 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
     data = to_mobility(f[inside], h[inside], quantity)
 
     first = geometric(data, *taubin(data))
-    phi0, omega_r, zeta_sweep, sense = _fit_sweep(omega, np.angle(data - first[0]))
+    peak_noise = curve_noise * mobility_factor(quantity, float(omega[np.argmax(np.abs(data))]))
+    phi0, omega_r, zeta_sweep, sense = _fit_sweep(omega, np.angle(data - first[0]),
+                                                  lambda: _peak_sweep_start(omega, data, first[0], peak_noise))
     n_trend = int(np.clip((omega.size - 6) // 4, 0, 3))  # 2n real equations, 6 + 2 n_trend unknowns
     centre, radius, phi0, omega_r, zeta_sweep, trend, spread, sense = _refine(
         omega, data, *first, phi0, omega_r, zeta_sweep, sense, n_trend)
