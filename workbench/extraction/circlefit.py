@@ -25,7 +25,10 @@ Per mode and curve (`circle_fit`):
    fastest sweep rates), then a least-squares fit of the exact angle model above,
    ``phi(omega) = phi_0 - 2 arctan x(omega; omega_r, zeta)``, to all the points' angles. The fitted
    ``omega_r`` is the natural frequency: the raw sweep-rate maximum sits ``zeta^2 / 2`` (relative)
-   below it, 4.5e-4 at 3 % damping, too far for the 1e-4 target;
+   below it, 4.5e-4 at 3 % damping, too far for the 1e-4 target. A mode a third or half a line wide
+   can turn by more than pi between the two lines at its peak, so that the wrapped steps put the
+   fastest rate on the wrong line; where those starts miss the angles, the start the peak's
+   magnitudes give (`peak_inverse`) is tried too (`_fit_sweep`);
 3. neighbouring modes: their contribution is not constant across the band and distorts the circle
    (frequency errors of a few 1e-6 at 3 % damping with a neighbour 2.5 times higher). The circle
    (centre, radius), the sweep (``phi_0, omega_r, zeta``) and the *variation* across the band of
