@@ -1,20 +1,25 @@
 """Circle through complex points (the Nyquist plot of one mode's mobility, `circlefit`): an algebraic
 start (Taubin's fit, in Chernov's SVD form) refined by geometric least squares on the radial
 distances; the angle swept along it by one viscous mode and its derivatives (`sweep_angle`,
-`sweep_gradient`); and the exact viscous damping from two points' angles on it (`pair_damping`).
+`sweep_gradient`), and its least-squares fit to the points' angles (`fit_sweep`); and the exact viscous damping
+from two points' angles on it (`pair_damping`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-from workbench.extraction.levenberg import lm
+from workbench.extraction.levenberg import LMResult, lm
 
 __all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "LOG_ZETA_BOUNDS", "taubin", "geometric", "pair_damping", "pairs",
-           "mobility_factor", "wrap_angle", "sweep_angle", "sweep_gradient", "clip_log_zeta", "trend_basis"]
+           "mobility_factor", "wrap_angle", "sweep_angle", "sweep_gradient", "clip_log_zeta", "trend_basis",
+           "SENSE_RETRY", "fit_sweep", "angle_rms"]
 
 MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
 PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
+SENSE_RETRY = 0.3  # rad RMS angle misfit above which the anticlockwise sweep is tried too (`fit_sweep`)
 LOG_ZETA_BOUNDS = (-30.0, 5.0)  # log zeta in the fits' models: a wandering damping is a failed start, not an answer
 
 
@@ -132,3 +137,67 @@ def sweep_gradient(omega: np.ndarray, phi0: float, ratio: float, log_zeta: float
     out[:, 1] = d_angle * dx_domega_r * w0
     out[:, 2] = d_angle * -x * inside
     return out
+
+
+def fit_sweep(omega: np.ndarray, phi: np.ndarray,
+              peak_start: Callable[[], tuple[float, float, float, float] | None] | None = None,
+              ) -> tuple[float, float, float, float]:
+    """Natural frequency, damping and diameter angle from the angles ``phi`` (rad) of the points
+    seen from the centre: start where the sweep is fastest, then least squares on the exact
+    one-mode angle model. Returns (phi0, omega_r, zeta, sense): ``sense`` +1 for a clockwise sweep
+    (exp(+i omega t)), -1 for data in the other convention, tried when the clockwise fit misses the
+    angles by more than `SENSE_RETRY` rad RMS (the direction cannot be read off the data: a mode
+    resolved by one or two lines steps by nearly pi).
+
+    Before the other sense, ``peak_start()`` (`workbench.extraction.circlefit`: the start the peak's magnitudes
+    give, or None) is tried: a mode a third or half a line wide can turn by more than pi between the
+    two lines at its peak, and the wrapped steps then put the fastest rate, so every start read off
+    the steps, on the wrong line (the fit ended 2 Hz away, flagged ``edge_of_band``, in 45 % of such
+    fits: ``tests/test_circlefit.py``). Fits the steps' starts already fit are left as they were.
+    """
+    step = wrap_angle(np.diff(phi))
+    mid = 0.5 * (omega[1:] + omega[:-1])
+    best, best_sense, scale = None, 1.0, 1.0
+
+    def attempt(phi0: float, w0: float, z0: float, sense: float) -> None:
+        nonlocal best, best_sense, scale
+
+        def residual(p):
+            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(clip_log_zeta(p[2])), sense))
+
+        def jacobian(p):
+            return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
+
+        sol = lm(residual, [phi0, 1.0, np.log(z0)], jacobian, xtol=1e-15, ftol=1e-15)
+        if best is None or sol.cost < best.cost:
+            best, best_sense, scale = sol, sense, w0
+
+    for sense in (1.0, -1.0):
+        if best is not None and angle_rms(best, phi) < SENSE_RETRY:
+            break  # the contract's clockwise sweep fits: no need to try the other way
+        rate = -sense * step / np.diff(omega)
+        k = int(np.argmax(rate))
+        w0 = mid[k]
+        if 0 < k < rate.size - 1:  # vertex of the parabola through the three fastest rates
+            c = np.polyfit(mid[k - 1:k + 2], rate[k - 1:k + 2], 2)
+            if c[0] < 0.0:
+                w0 = float(np.clip(-c[1] / (2 * c[0]), mid[k - 1], mid[k + 1]))
+        zeta0 = float(np.clip(2.0 / (w0 * max(float(rate[k]), 1e-300)), 1e-6, 0.5))
+        phi0 = float(phi[k] - sense * step[k] / 2)
+        for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
+            attempt(phi0, w0, z0, sense)
+        assert best is not None  # three starts always ran
+        if sense > 0 and peak_start is not None and angle_rms(best, phi) >= SENSE_RETRY:
+            start = peak_start()
+            if start is not None:
+                attempt(start[0], start[1], start[2], start[3])
+    assert best is not None
+    zeta = float(np.exp(clip_log_zeta(best.x[2])))
+    # a negative omega_r is the same angle model swept the other way: keep omega_r positive
+    flip = 1.0 if best.x[1] >= 0.0 else -1.0
+    return float(best.x[0]), float(flip * best.x[1] * scale), zeta, flip * best_sense
+
+
+def angle_rms(fit: LMResult, phi: np.ndarray) -> float:
+    """RMS angle misfit (rad) of a sweep fit over the angles ``phi``."""
+    return float(np.sqrt(2.0 * fit.cost / phi.size))

@@ -28,7 +28,7 @@ Per mode and curve (`circle_fit`):
    below it, 4.5e-4 at 3 % damping, too far for the 1e-4 target. A mode a third or half a line wide
    can turn by more than pi between the two lines at its peak, so that the wrapped steps put the
    fastest rate on the wrong line; where those starts miss the angles, the start the peak's
-   magnitudes give (`peak_inverse`) is tried too (`_fit_sweep`);
+   magnitudes give (`peak_inverse`) is tried too (`circle_geometry.fit_sweep`);
 3. neighbouring modes: their contribution is not constant across the band and distorts the circle
    (frequency errors of a few 1e-6 at 3 % damping with a neighbour 2.5 times higher). The circle
    (centre, radius), the sweep (``phi_0, omega_r, zeta``) and the *variation* across the band of
@@ -93,7 +93,6 @@ than the angles resolve (its intervals `peak_inverse`'s). Measured coverage: ``t
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -101,6 +100,7 @@ import numpy as np
 from workbench.extraction.circle_geometry import (
     MIN_SIDE_POINTS,
     clip_log_zeta,
+    fit_sweep,
     geometric,
     mobility_factor,
     pair_damping,
@@ -131,7 +131,6 @@ CLOSE_FLOOR = 5e-4       # systematic misfit / radius below this is not evidence
 CLOSE_BANDWIDTHS = 3.0   # two modes closer than this many half-power bandwidths are "close"
 LEAKAGE_LINES = 2.0      # a distorted curve's half-power bandwidth is known to +- this many lines
 MIN_BAND_POINTS = 6      # fewer points in a band is an error
-SENSE_RETRY = 0.3        # rad RMS angle misfit above which the anticlockwise sweep is tried too
 WEIGHT_FLOOR = 1e-4      # circle-error floor in the combination weights
 
 
@@ -254,74 +253,10 @@ def to_mobility(frequency_hz: np.ndarray, frf: np.ndarray, quantity: str) -> np.
 # --------------------------------------------------------------------------------------------
 # circle and sweep
 
-def _fit_sweep(omega: np.ndarray, phi: np.ndarray,
-               peak_start: Callable[[], tuple[float, float, float, float] | None] | None = None,
-               ) -> tuple[float, float, float, float]:
-    """Natural frequency, damping and diameter angle from the angles ``phi`` (rad) of the points
-    seen from the centre: start where the sweep is fastest, then least squares on the exact
-    one-mode angle model. Returns (phi0, omega_r, zeta, sense): ``sense`` +1 for a clockwise sweep
-    (exp(+i omega t)), -1 for data in the other convention, tried when the clockwise fit misses the
-    angles by more than `SENSE_RETRY` rad RMS (the direction cannot be read off the data: a mode
-    resolved by one or two lines steps by nearly pi).
-
-    Before the other sense, ``peak_start()`` (`_peak_sweep_start`: the start the peak's magnitudes
-    give, or None) is tried: a mode a third or half a line wide can turn by more than pi between the
-    two lines at its peak, and the wrapped steps then put the fastest rate, so every start read off
-    the steps, on the wrong line (the fit ended 2 Hz away, flagged ``edge_of_band``, in 45 % of such
-    fits: ``tests/test_circlefit.py``). Fits the steps' starts already fit are left as they were.
-    """
-    step = wrap_angle(np.diff(phi))
-    mid = 0.5 * (omega[1:] + omega[:-1])
-    best, best_sense, scale = None, 1.0, 1.0
-
-    def attempt(phi0: float, w0: float, z0: float, sense: float) -> None:
-        nonlocal best, best_sense, scale
-
-        def residual(p):
-            return wrap_angle(phi - sweep_angle(omega, p[0], p[1] * w0, np.exp(clip_log_zeta(p[2])), sense))
-
-        def jacobian(p):
-            return -sweep_gradient(omega, p[0], p[1], p[2], w0, sense)
-
-        sol = lm(residual, [phi0, 1.0, np.log(z0)], jacobian, xtol=1e-15, ftol=1e-15)
-        if best is None or sol.cost < best.cost:
-            best, best_sense, scale = sol, sense, w0
-
-    for sense in (1.0, -1.0):
-        if best is not None and _angle_rms(best, phi) < SENSE_RETRY:
-            break  # the contract's clockwise sweep fits: no need to try the other way
-        rate = -sense * step / np.diff(omega)
-        k = int(np.argmax(rate))
-        w0 = mid[k]
-        if 0 < k < rate.size - 1:  # vertex of the parabola through the three fastest rates
-            c = np.polyfit(mid[k - 1:k + 2], rate[k - 1:k + 2], 2)
-            if c[0] < 0.0:
-                w0 = float(np.clip(-c[1] / (2 * c[0]), mid[k - 1], mid[k + 1]))
-        zeta0 = float(np.clip(2.0 / (w0 * max(float(rate[k]), 1e-300)), 1e-6, 0.5))
-        phi0 = float(phi[k] - sense * step[k] / 2)
-        for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
-            attempt(phi0, w0, z0, sense)
-        assert best is not None  # three starts always ran
-        if sense > 0 and peak_start is not None and _angle_rms(best, phi) >= SENSE_RETRY:
-            start = peak_start()
-            if start is not None:
-                attempt(start[0], start[1], start[2], start[3])
-    assert best is not None
-    zeta = float(np.exp(clip_log_zeta(best.x[2])))
-    # a negative omega_r is the same angle model swept the other way: keep omega_r positive
-    flip = 1.0 if best.x[1] >= 0.0 else -1.0
-    return float(best.x[0]), float(flip * best.x[1] * scale), zeta, flip * best_sense
-
-
-def _angle_rms(fit, phi: np.ndarray) -> float:
-    """RMS angle misfit (rad) of a sweep fit over the angles ``phi``."""
-    return float(np.sqrt(2.0 * fit.cost / phi.size))
-
-
 def _peak_sweep_start(omega: np.ndarray, data: np.ndarray, centre: complex,
                       noise: float) -> tuple[float, float, float, float] | None:
     """``(phi0, omega_r, zeta, sense)`` from the magnitudes at the peak (`peak_inverse`) where they are one mode's,
-    else None: the start of `_fit_sweep` that does not read the angles' steps. ``noise``: the curve's noise in
+    else None: the start of `fit_sweep` that does not read the angles' steps. ``noise``: the curve's noise in
     mobility units at the peak.
     """
     peak = peak_inverse(omega, data, noise)
@@ -377,7 +312,7 @@ def _refine(omega, data, centre, radius, phi0, omega_r, zeta, sense, n_trend):
     # covariance of (omega_r / w0, log zeta): residual variance on its degrees of freedom, (J^T J)^-1
     dof = max(2 * omega.size - p.size, 1)
     cov = (2.0 * sol.cost / dof) * inverse_normal(sol.jac)[4:6, 4:6]
-    flip = 1.0 if p[4] >= 0.0 else -1.0  # as in `_fit_sweep`: omega_r kept positive, the sense follows
+    flip = 1.0 if p[4] >= 0.0 else -1.0  # as in `fit_sweep`: omega_r kept positive, the sense follows
     return (complex(p[0], p[1]) * scale, abs(p[2]) * scale, float(p[3]) + (np.pi if p[2] < 0 else 0.0),
             float(flip * p[4] * w0), float(np.exp(clip_log_zeta(p[5]))), trend,
             (np.sqrt(max(cov[0, 0], 0.0)) * w0, np.sqrt(max(cov[1, 1], 0.0)), dof), flip * sense)
@@ -462,8 +397,8 @@ def _circle_fit(f: np.ndarray, h: np.ndarray, band: tuple[float, float], quantit
 
     first = geometric(data, *taubin(data))
     peak_noise = curve_noise * mobility_factor(quantity, float(omega[np.argmax(np.abs(data))]))
-    phi0, omega_r, zeta_sweep, sense = _fit_sweep(omega, np.angle(data - first[0]),
-                                                  lambda: _peak_sweep_start(omega, data, first[0], peak_noise))
+    phi0, omega_r, zeta_sweep, sense = fit_sweep(omega, np.angle(data - first[0]),
+                                                 lambda: _peak_sweep_start(omega, data, first[0], peak_noise))
     n_trend = int(np.clip((omega.size - 6) // 4, 0, 3))  # 2n real equations, 6 + 2 n_trend unknowns
     centre, radius, phi0, omega_r, zeta_sweep, trend, spread, sense = _refine(
         omega, data, *first, phi0, omega_r, zeta_sweep, sense, n_trend)
