@@ -89,6 +89,7 @@ def test_an_unreachable_scheduler_is_one_line_naming_it(tmp_path, monkeypatch):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow  # 16 s on 2 cores: moved to the slow step to keep the default suite under 5 minutes
 def test_a_worker_killed_mid_run_changes_nothing(cluster):
     from workbench.model.assembly import assemble
     from workbench.model.frame_file import read_frame

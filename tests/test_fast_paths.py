@@ -18,7 +18,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.optimize._numdiff import approx_derivative
 
-from workbench.extraction import circlefit, multimode
+from workbench.extraction import circle_geometry, circlefit, multimode
 from workbench.model.assembly import assemble
 from workbench.model.frame import locate_point, points_on_member
 from workbench.model.generate import multibay_frame
@@ -61,6 +61,7 @@ def test_circle_fit_jacobians_are_the_derivatives_of_its_residuals(monkeypatch):
         return sol
 
     monkeypatch.setattr(circlefit, "lm", checking)
+    monkeypatch.setattr(circle_geometry, "lm", checking)  # the geometric circle and the sweep (`fit_sweep`)
     f = np.linspace(80.0, 130.0, 400)
     modes = Modes(eigenvalues=(2.0 * np.pi * np.array([100.0, 112.0])) ** 2, shapes=np.array([[1.0, 0.6],
                                                                                                [0.4, -1.0]]))
