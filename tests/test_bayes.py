@@ -145,6 +145,7 @@ def test_sampler_recovers_a_gaussian_toy_posterior_and_rejects_a_wrong_one():
     assert stats.kstest(thinned[:, 2], "norm", args=(MEAN[2], 1.15 * sd[2])).pvalue < 1e-3
 
 
+@pytest.mark.slow  # 11 s on 2 cores: in the slow step, so that the default suite stays under 5 minutes
 def test_full_identification_is_reproducible_per_seed(tmp_path, one_joint):
     model, data, _, _ = one_joint
     kwargs = dict(start=[72e9], walkers=24, steps=40, burn=10)

@@ -191,6 +191,7 @@ def test_moment_matching_residuals_and_eps_by_hand(one_bolt, one_bolt_moments_fi
     assert fit.method == "adaptive" and fit.evaluations > 0 and 1 <= fit.sweeps
 
 
+@pytest.mark.slow  # 11 s on 2 cores: in the slow step, so that the default suite stays under 5 minutes
 def test_moment_matching_two_groups_at_once(two_bolt):
     truth, cov = np.array([15e9, 50e9]), np.array([0.10, 0.20])
     data = _exact_moments(two_bolt, truth, cov, 8)

@@ -46,6 +46,7 @@ def test_j2_selection_finds_the_orthogonal_array_of_nine_runs_for_four_three_lev
     assert j2(chosen) <= j2(_full_factorial(4)[:9])  # the first nine runs of the factorial are not balanced
 
 
+@pytest.mark.slow  # 11 s on 2 cores: in the slow step, so that the default suite stays under 5 minutes
 def test_candidates_hold_the_papers_designs_and_respect_the_budget():
     designs = {d.name: d for d in candidate_designs(4, 40, low=4)}
     assert designs["two_level_centre"].tests == 17  # Table 6
