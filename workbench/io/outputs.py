@@ -277,6 +277,8 @@ def claim_output(out: str | Path, *, command: str, names: Iterable[str], force: 
                                     "writes into an input: choose another directory")
     if not target.parent.is_dir():
         target.parent.mkdir(parents=True, exist_ok=True)
+    # the empty lock file stays after the run: unlinking a released flock lets a process that opened the old
+    # file and one that creates a new one both hold "the" lock (filelock keeps it for that reason too)
     lock = filelock.FileLock(target.parent / f".{target.name}.lock", timeout=0)
     try:
         lock.acquire()
