@@ -60,7 +60,7 @@ def main() -> None:
     pooled: Counter = Counter()
     with mapper(args.workers) as run:
         for seed in args.seeds:
-            counts = tally(run(run_proving_case, validation_specs(args.cases, seed), "cases", None))
+            counts = tally(run(run_proving_case, validation_specs(args.cases, seed, "fixed"), "cases", None))
             pooled += counts
             print(f"seed {seed}: {dict(counts)}", flush=True)
     print(f"pooled over seeds {args.seeds}: level tests {pooled['tested']}; taken away: "

@@ -43,7 +43,7 @@ def main() -> None:
     parser.add_argument("--cases", type=int, nargs="+", default=list(DEFAULT_CASES))
     parser.add_argument("--variants", nargs="+", default=["receptance", "mobility"])
     args = parser.parse_args()
-    specs = {s.case: s for s in validation_specs(max(args.cases) + 1, args.seed)}
+    specs = {s.case: s for s in validation_specs(max(args.cases) + 1, args.seed, "fixed")}
     names = ["accelerance", *args.variants]
     right = dict.fromkeys(names, 0)
     agree = dict.fromkeys(args.variants, 0)

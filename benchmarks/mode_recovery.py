@@ -25,7 +25,7 @@ from workbench.workflow.proving_validation import validation_specs
 
 def main(seed: int = 9001, cases: int = 100) -> None:
     found = total = spurious = estimates = 0
-    for spec in validation_specs(cases, seed)[::4]:
+    for spec in validation_specs(cases, seed, "fixed")[::4]:
         campaign, truth = case_campaign(spec)
         measured = measured_modes(campaign, None, "diagnose").frequency_hz
         lost = []

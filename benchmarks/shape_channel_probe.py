@@ -41,7 +41,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=13)
     parser.add_argument("--mix", type=int, default=200, help="cases in the seed's mix (default 200)")
     args = parser.parse_args()
-    specs = {s.case: s for s in validation_specs(args.mix, args.seed)}
+    specs = {s.case: s for s in validation_specs(args.mix, args.seed, "fixed")}
     np.set_printoptions(precision=4, suppress=True, linewidth=140)
     for case in args.cases:
         spec = specs[case]

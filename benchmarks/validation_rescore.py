@@ -40,7 +40,8 @@ def load(path: Path) -> list[ProvingResult]:
             row["where"] or None, tuple(row["also"].split()), row["partial"] or None, float(row["confidence"]),
             float(row["shrinkage"]), row["right"] == "True", row["named_wrong"] == "True",
             None if row["place_right"] in ("", "None") else row["place_right"] == "True",
-            float(row["wall_time_s"]), {}, reached))
+            float(row["wall_time_s"]), {}, reached, row.get("quantity", "accelerance"),
+            row.get("sensed", "accelerance"), float(row.get("df_hz", 0.25))))  # seeds before 19: accelerance, 0.25 Hz
     return results
 
 

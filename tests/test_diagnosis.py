@@ -336,7 +336,8 @@ def test_validation_reports_progress_and_writes_its_files(monkeypatch, tmp_path)
     def fake_case(_, spec):
         category = "none" if spec.kind == "none" else "single"
         return ProvingResult(spec.case, spec.seed, spec.frame, category, spec.kind, None, spec.level, None, None,
-                             None, "none", None, (), None, 0.9, 0.0, category == "none", False, None, 0.5, {})
+                             None, "none", None, (), None, 0.9, 0.0, category == "none", False, None, 0.5, {},
+                             "medium" if category == "single" else "", spec.quantity, spec.sensed, spec.df_hz)
 
     monkeypatch.setattr(workflow, "run_proving_case", fake_case)
     calls = []
@@ -349,8 +350,14 @@ def test_validation_reports_progress_and_writes_its_files(monkeypatch, tmp_path)
     record = json.loads(files["validation.json"])
     assert "results" not in record and len(record["case_results"]) == 3
     rows = list(csv.reader(io.StringIO(files["cases.csv"])))
-    assert len(rows) == 4 and rows[0][-1] == "wall_time_s"
+    assert len(rows) == 4 and rows[0][-1] == "wall_time_s" and rows[0][-4:-1] == ["quantity", "sensed", "df_hz"]
     assert "Wilson" in validation_html(record) and "single effect" in validation_text(record)
+    # each case measured as drawn (workbench.proving.cases.drawn_measurements), the single ones grouped by it
+    specs = workflow.validation_specs(3, 2)
+    assert [(r[-4], r[-3], float(r[-2])) for r in rows[1:]] == [(s.quantity, s.sensed, s.df_hz) for s in specs]
+    by = summary["single_accuracy_by_measurement"]
+    assert sum(v["n"] for v in by.values()) == summary["single_accuracy"]["n"] == 2
+    assert all(f"single effects, {label}" in validation_text(record) for label in by)
 
 
 def test_a_faint_case_counts_in_no_rate_but_confident_wrong():

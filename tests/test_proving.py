@@ -40,10 +40,13 @@ from workbench.proving.cases import (
     FAINT,
     FOOTPRINTS,
     KINDS,
+    LINE_SPACINGS_HZ,
+    MEASUREMENTS,
     CaseSpec,
     case_campaign,
     case_mix,
     design_of,
+    drawn_measurements,
     expected_verdict,
     reached_level,
 )
@@ -325,6 +328,42 @@ def test_case_mix_is_reproducible_and_covers_every_kind():
     assert {s.level for s in mix if s.kind not in (NONE, "identification")} == {"small", "medium", "large"}
     assert {s.frame for s in mix} <= set(FRAME_NAMES)
     assert expected_verdict(OUTSIDE) == "unexplained" and expected_verdict("identification") == NONE
+
+
+def test_an_exported_quantity_carries_the_noise_of_the_sensed_one():
+    """An accelerometer's receptance is its accelerance over (i w)^2, noise included, line by line; a receptance
+    sensed as such has its noise at each curve's receptance RMS instead, above it at the top of the band."""
+    spec = CaseSpec(0, 123, "two_bolt", "added_mass", "medium")
+    sensed, _ = case_campaign(spec, SMALL)
+    exported, truth = case_campaign(spec, replace(SMALL, quantity="receptance", sensed="accelerance"))
+    direct, _ = case_campaign(spec, replace(SMALL, quantity="receptance"))
+    assert exported.quantity == "receptance" and truth["sensed"] == "accelerance"
+    f = sensed.frf["frequency_hz"].to_numpy()
+    h_acc = sensed.frf["real"].to_numpy() + 1j * sensed.frf["imag"].to_numpy()
+    h_rec = exported.frf["real"].to_numpy() + 1j * exported.frf["imag"].to_numpy()
+    h_dir = direct.frf["real"].to_numpy() + 1j * direct.frf["imag"].to_numpy()
+    lines = f > 0
+    assert np.allclose(h_rec[lines] * (2j * np.pi * f[lines]) ** 2, h_acc[lines], rtol=1e-12, atol=0.0)
+    assert np.all(h_rec[~lines] == 0.0)
+    # the top 10 % of the band, line-to-line roughness (noise and the curve's slope; 3.6 times on this case)
+    top = f > 0.9 * f.max()
+    rough_exported = np.median(np.abs(np.diff(h_rec[top])))
+    rough_direct = np.median(np.abs(np.diff(h_dir[top])))
+    assert rough_direct > 2.0 * rough_exported
+
+
+def test_drawn_measurements_change_only_the_measurement_and_cover_the_lab_mix():
+    mix = [s for s in case_mix(400, 5) if s.kind != "identification"]
+    drawn = drawn_measurements(mix, 5)
+    assert drawn == drawn_measurements(mix, 5) and drawn != drawn_measurements(mix, 6)
+    fixed = CaseSpec(0, 0, "two_bolt", NONE)
+    assert all(replace(d, quantity=fixed.quantity, sensed=fixed.sensed, df_hz=fixed.df_hz) == s
+               for d, s in zip(drawn, mix))
+    assert {(d.sensed, d.quantity) for d in drawn} == set(MEASUREMENTS)
+    assert {d.df_hz for d in drawn} == set(LINE_SPACINGS_HZ)
+    spec = drawn[0]
+    settings = spec.settings()
+    assert (settings.quantity, settings.sensed, settings.df_hz) == (spec.quantity, spec.sensed, spec.df_hz)
 
 
 def test_paper_designs():

@@ -247,7 +247,7 @@ def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.workflow.execution import mapper
 
     with mapper(args.workers, args.scheduler, _progress()) as run:
-        files = validation_files(validate(args.cases, args.seed, mapper=run))
+        files = validation_files(validate(args.cases, args.seed, mapper=run, measurement=args.measurement))
     record = json.loads(files["validation.json"])
     out.commit({**files, "index.html": validation_html(record)})
     print(validation_text(record))
@@ -350,6 +350,10 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("validate-diagnosis", help="blind validation of the diagnosis on proving-ground cases")
     p.add_argument("--cases", type=_positive_int, default=200, help="number of cases (default 200)")
     p.add_argument("--seed", type=int, default=0, help="seed of the case mix (default 0)")
+    p.add_argument("--measurement", choices=["drawn", "fixed"], default="drawn",
+                   help="drawn (default): each case measured as a lab might (accelerometer or vibrometer; accelerance, "
+                        "mobility or receptance exported; 3200-6400 lines); fixed: accelerance on 0.25 Hz lines, as "
+                        "the runs up to seed 18")
     _work_options(p, every_core=True)
     p.add_argument("--out", required=True, help="output directory: validation.json, cases.csv, index.html")
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")

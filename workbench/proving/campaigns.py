@@ -9,8 +9,12 @@ The campaign's ``frame`` is the **nominal** frame file (what the user's model sa
    amplitude level (``low`` = 1, ``high`` = 5, or numeric levels over the lowest);
 3. the article is discretised (`workbench.proving.fem.discretise`), its modes found up to three times
    the band's top (the rest enter as residual flexibility), the damping drawn (`DampingModel`);
-4. accelerance at every sensor for the force at the excitation (`workbench.proving.beams.frf`, a direct
-   solve per line where the article has dashpots), plus noise at each sensor's SNR.
+4. the FRF at every sensor for the force at the excitation (`workbench.proving.beams.frf`, a direct
+   solve per line where the article has dashpots) in the quantity the sensor measures (``sensed``:
+   accelerance for an accelerometer, mobility for a vibrometer), plus noise at each sensor's SNR, then
+   converted to the quantity the file holds (``quantity``: what the test software exports) by
+   ``(i w)^k``, so that an accelerometer's receptance carries its noise divided by ``w^2``, as an exported
+   one does (the 0 Hz line, where that division has no value, is written as 0).
 
 The FRF table has the virtual rig's layout (``test_id`` 1..n as integers, the frame's sensors in order,
 ``frequency_hz``, ``real``, ``imag``; 0 to 1250 Hz every 0.25 Hz by default), so that the workbench's circle fit
@@ -31,7 +35,7 @@ from workbench.io.campaign import Campaign, Factor
 from workbench.model.frame import Frame
 from workbench.progress import Progress, report
 from workbench.proving.article import Article
-from workbench.proving.beams import damped_modes, frf, solve_modes
+from workbench.proving.beams import QUANTITIES, damped_modes, frf, solve_modes
 from workbench.proving.fem import discretise
 from workbench.proving.nuisances import (
     NuisanceSettings,
@@ -58,7 +62,8 @@ class CampaignSettings:
 
     f_max_hz: float = 1250.0
     df_hz: float = 0.25
-    quantity: str = "accelerance"
+    quantity: str = "accelerance"  # the FRFs' quantity in the file
+    sensed: str | None = None  # the quantity the sensors measure, where the noise is added; None: ``quantity``
     truth_modes: int = 10  # the truth reports at least these modes, and every one in the band
     synthesis_factor: float = 3.0  # modes up to this times f_max are summed
     nuisances: NuisanceSettings = field(default_factory=NuisanceSettings)
@@ -136,8 +141,9 @@ def _test(built: _Built, moduli: dict[str, float], temperature: float, settings:
     count = settings.truth_modes + 6
     modes = solve_modes(d.system.stiffness, d.system.mass, count, max_hz=settings.synthesis_factor * settings.f_max_hz)
     zeta = built.damping.ratios(modes.frequency_hz, rng.tests)
-    clean = frf(d.system, modes, axis, zeta, settings.quantity)
-    noisy = add_noise(clean, built.snr_db, rng.noise)
+    sensed = settings.sensed or settings.quantity
+    noisy = _exported(add_noise(frf(d.system, modes, axis, zeta, sensed), built.snr_db, rng.noise), axis, sensed,
+                      settings.quantity)
     n = max(settings.truth_modes, int(np.sum(modes.frequency_hz <= settings.f_max_hz)))
     if d.system.damping is None:
         freq, ratio = modes.frequency_hz[:n], zeta[:n]
@@ -145,6 +151,19 @@ def _test(built: _Built, moduli: dict[str, float], temperature: float, settings:
         freq, ratio = (v[:n] for v in damped_modes(d.system, modes, zeta))
     return noisy, {"temperature_offset_k": float(temperature), "modulus_factor": float(factor),
                    "joint_moduli_pa": dict(moduli), "frequency_hz": freq.tolist(), "damping_ratio": ratio.tolist()}
+
+
+def _exported(values: np.ndarray, frequency_hz: np.ndarray, sensed: str, quantity: str) -> np.ndarray:
+    """``values`` (n_sensors, n_freq) measured as ``sensed``, in ``quantity``: times ``(i w)^(p - p_sensed)``
+    (0 where that is infinite, at 0 Hz).
+    """
+    k = QUANTITIES.index(quantity) - QUANTITIES.index(sensed)  # in the order of the powers of i w
+    if k == 0:
+        return values
+    iw = 2j * np.pi * np.asarray(frequency_hz, float)
+    factor = np.zeros_like(iw)
+    np.power(iw, k, out=factor, where=iw != 0)
+    return values * factor[None, :]
 
 
 def simulate_campaign(nominal: Frame, article: Article, factors: Sequence[Factor], design: Sequence[Mapping[str, str]],
@@ -203,7 +222,7 @@ def simulate_campaign(nominal: Frame, article: Article, factors: Sequence[Factor
                         frf=frf_table)
     truth = {
         "generator": "workbench.proving", "campaign": name, "seed": seed, "quantity": settings.quantity,
-        "f_max_hz": settings.f_max_hz, "df_hz": settings.df_hz,
+        "sensed": settings.sensed or settings.quantity, "f_max_hz": settings.f_max_hz, "df_hz": settings.df_hz,
         "joints": {j: {"mean_pa": float(laws[j][0]), "cov": float(laws[j][1]), "moduli_pa": v.tolist(),
                        "sample_mean_pa": float(v.mean()),
                        "sample_cov": float(v.std(ddof=1) / v.mean()) if v.size > 1 else 0.0}

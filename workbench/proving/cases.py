@@ -52,8 +52,9 @@ from workbench.proving.mechanisms import EFFECTS, NONE, OUTSIDE, Mechanism, voca
 from workbench.proving.nuisances import streams
 from workbench.proving.outside import outside_mechanism
 
-__all__ = ["CaseSpec", "KINDS", "LEVELS", "FOOTPRINTS", "DAMPING_FOOTPRINTS", "FAINT", "FAINT_SHARE", "case_mix",
-           "case_campaign", "expected_verdict", "reached_level", "design_of"]
+__all__ = ["CaseSpec", "KINDS", "LEVELS", "MEASUREMENTS", "MEASUREMENT_SHARES", "LINE_SPACINGS_HZ", "FOOTPRINTS",
+           "DAMPING_FOOTPRINTS", "FAINT", "FAINT_SHARE", "case_mix", "drawn_measurements", "case_campaign",
+           "expected_verdict", "reached_level", "design_of"]
 
 COMBINED, IDENTIFICATION = "combined", "identification"
 KINDS = (NONE,) + EFFECTS + (COMBINED, OUTSIDE, IDENTIFICATION)
@@ -65,6 +66,13 @@ FAINT_SHARE = 0.5
 SECONDARY_SHARE = 1.0 / 3.0
 _AMPLITUDE = Factor("amplitude", "amplitude", {"low": "low amplitude", "high": "high amplitude (5 x low)"})
 _TIGHTENING = {"1": "hand-tight, preload < 100 N", "2": "1800 N", "3": "6000 N"}
+# (sensed, exported): an accelerometer's accelerance, or the receptance or mobility its software exports; a laser
+# vibrometer's mobility, or its receptance; a lab's mix, accelerometers first
+MEASUREMENTS = (("accelerance", "accelerance"), ("accelerance", "receptance"), ("accelerance", "mobility"),
+                ("mobility", "mobility"), ("mobility", "receptance"))
+MEASUREMENT_SHARES = (0.4, 0.15, 0.1, 0.25, 0.1)
+LINE_SPACINGS_HZ = (1250.0 / 6400, 0.25, 1250.0 / 3200)  # 6400, 5000 and 3200 lines over the 1250 Hz band
+_MEASUREMENT_STREAM = 0x6D656173  # "meas": the measurement's own stream of a mix's seed
 _COMBINABLE = tuple(e for e in EFFECTS if e != "shear_deformation")  # shear changes the nominal file itself
 
 
@@ -85,6 +93,8 @@ class CaseSpec:
     secondary, secondary_variant : a combined case's weaker effect and its mechanism.
     design : ``blind`` or ``paper`` (module docstring). joint_cov : the blind design's joint scatter.
     blind_tests : the blind design's number of tests (even: low and high amplitude alternating).
+    quantity, sensed, df_hz : the measurement (`workbench.proving.campaigns.CampaignSettings`): the file's FRF
+        quantity, the quantity the sensors measure (where the noise is added), the line spacing (Hz).
     """
 
     case: int
@@ -99,12 +109,20 @@ class CaseSpec:
     design: str = "blind"
     joint_cov: float = 0.02
     blind_tests: int = 8
+    quantity: str = "accelerance"
+    sensed: str = "accelerance"
+    df_hz: float = 0.25
+
+    def settings(self) -> CampaignSettings:
+        """The campaign's measurement settings (the nuisances at their defaults)."""
+        return CampaignSettings(df_hz=self.df_hz, quantity=self.quantity, sensed=self.sensed)
 
 
 def case_mix(n_cases: int, seed: int) -> list[CaseSpec]:
     """``n_cases`` specs cycling over `KINDS` (each kind's levels in turn), frames and details drawn from ``seed``.
 
     The same ``(n_cases, seed)`` always gives the same list, and a longer list starts with a shorter one's cases.
+    Every case is measured as accelerance on 0.25 Hz lines; `drawn_measurements` draws a lab's mix instead.
     """
     rng = np.random.default_rng(np.random.SeedSequence(seed))
     children = np.random.SeedSequence(seed).spawn(n_cases)
@@ -120,6 +138,20 @@ def case_mix(n_cases: int, seed: int) -> list[CaseSpec]:
         specs.append(CaseSpec(i, case_seed, frame, kind, level, secondary=secondary,
                               design="paper" if kind == IDENTIFICATION else "blind"))
     return specs
+
+
+def drawn_measurements(specs: list[CaseSpec], seed: int) -> list[CaseSpec]:
+    """``specs`` each measured as a lab might: (sensed, exported) quantities from `MEASUREMENTS` with
+    `MEASUREMENT_SHARES`, the line spacing from `LINE_SPACINGS_HZ`, drawn in the specs' order from a stream of
+    ``seed`` of its own (the specs' frames, kinds and case seeds stay what `case_mix` drew).
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([seed, _MEASUREMENT_STREAM]))
+    drawn = []
+    for spec in specs:
+        sensed, quantity = MEASUREMENTS[int(rng.choice(len(MEASUREMENTS), p=MEASUREMENT_SHARES))]
+        df_hz = float(LINE_SPACINGS_HZ[int(rng.integers(len(LINE_SPACINGS_HZ)))])
+        drawn.append(replace(spec, quantity=quantity, sensed=sensed, df_hz=df_hz))
+    return drawn
 
 
 def expected_verdict(kind: str) -> str:
@@ -215,6 +247,7 @@ def case_campaign(spec: CaseSpec, settings: CampaignSettings | None = None,
         joint identification, the joint laws per group.
     """
     frame = proving_frame(spec.frame)
+    settings = settings or spec.settings()
     rng = streams(spec.seed).effect
     base = Article(frame)
     nominal = replace(frame, beam_theory="timoshenko")
@@ -222,7 +255,7 @@ def case_campaign(spec: CaseSpec, settings: CampaignSettings | None = None,
     article, primary, secondary = base, None, None
     if effect not in (NONE, IDENTIFICATION):
         mech = _mechanism(frame, effect, spec.variant, spec.where, rng)
-        band = (settings or CampaignSettings()).f_max_hz  # a shift above the band is never measured
+        band = settings.f_max_hz  # a shift above the band is never measured
         x, fp = calibrate(base, mech, _target(mech, spec.level), f_max_hz=band)
         article, primary = mech.build(base, x), _effect_record(mech, x, fp, _target(mech, spec.level))
         if mech.nominal is not None:

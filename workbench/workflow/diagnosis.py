@@ -30,7 +30,7 @@ __all__ = ["CampaignDiagnosis", "diagnose_campaign", "validate", "validation_fil
 
 CASE_COLUMNS = ["case", "seed", "frame", "category", "truth", "secondary", "level", "truth_where", "mechanism",
                 "footprint", "reached", "verdict", "where", "also", "partial", "confidence", "shrinkage", "right",
-                "named_wrong", "place_right", "wall_time_s"]
+                "named_wrong", "place_right", "quantity", "sensed", "df_hz", "wall_time_s"]
 
 
 @dataclass(frozen=True)
@@ -64,8 +64,10 @@ def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callab
     return CampaignDiagnosis(campaign, result, record)
 
 
-def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Mapper | None = None) -> dict[str, Any]:
-    """``cases`` blind proving-ground cases from ``seed`` (`workbench.workflow.proving_validation`), scored.
+def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Mapper | None = None,
+             measurement: str = "drawn") -> dict[str, Any]:
+    """``cases`` blind proving-ground cases from ``seed`` (`workbench.workflow.proving_validation`), scored;
+    ``measurement`` as `workbench.workflow.proving_validation.validation_specs`.
 
     ``progress("validation cases", done, cases)`` is called after each case when no ``mapper``
     (`workbench.tasks.Mapper`, e.g. Dask's) runs them; a case's numbers depend only on the seed.
@@ -77,9 +79,10 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
     """
     start = time.perf_counter()
     run = mapper or serial_mapper(progress)
-    results = run(run_proving_case, validation_specs(cases, seed), "validation cases", None)
+    results = run(run_proving_case, validation_specs(cases, seed, measurement), "validation cases", None)
     summary = score(results)
-    summary.update({"seed": seed, "generator": SOURCE, "wall_time_s": time.perf_counter() - start,
+    summary.update({"seed": seed, "generator": SOURCE, "measurement": measurement,
+                    "wall_time_s": time.perf_counter() - start,
                     "levels": {"gap_level": GAP_LEVEL, "explained_level": EXPLAINED_LEVEL,
                                "min_shrinkage": MIN_SHRINKAGE, "name_confidence": NAME_CONFIDENCE,
                                "pair_evidence": PAIR_EVIDENCE, "model_floor": MODEL_FLOOR, "common_sd": COMMON_SD,

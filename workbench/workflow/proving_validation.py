@@ -21,6 +21,8 @@ were set on a development mix of another seed, and a validation run must use a s
 - ``single_accuracy_by_level``: the same by the rung of the footprint the case reached
   (`workbench.proving.cases.reached_level`), and ``single_accuracy_by_requested_level`` by the rung it asked for
   (every single case; the scores of seeds up to 12 were given this way);
+- ``single_accuracy_by_measurement``: the same by how the case was measured (`measurement_label`: the file's
+  quantity, the sensed one, the line spacing; `validation_specs`);
 - ``faint_none``: a case whose primary effect reached less than half the small rung's footprint (``faint``: no
   diagnosis can tell it from the as-built frame) given ``none``; these cases count in none of the single,
   out-of-vocabulary or combined-primary rates (they do in ``confident_wrong``, ``abstention`` and the confusion
@@ -40,13 +42,22 @@ from scipy.stats import binomtest
 from workbench.diagnose.candidates import members_at
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.frame import Frame
-from workbench.proving.cases import FAINT, IDENTIFICATION, LEVELS, CaseSpec, case_campaign, case_mix, reached_level
+from workbench.proving.cases import (
+    FAINT,
+    IDENTIFICATION,
+    LEVELS,
+    CaseSpec,
+    case_campaign,
+    case_mix,
+    drawn_measurements,
+    reached_level,
+)
 from workbench.proving.frames import proving_frame
 from workbench.proving.mechanisms import NONE, OUTSIDE
 from workbench.rig.effects import ADDED_MASS, UNEXPLAINED
 from workbench.workflow.measured import measured_modes
 
-__all__ = ["ProvingResult", "validation_specs", "run_proving_case", "wilson", "score"]
+__all__ = ["ProvingResult", "validation_specs", "run_proving_case", "measurement_label", "wilson", "score"]
 
 
 @dataclass(frozen=True)
@@ -75,16 +86,26 @@ class ProvingResult:
     wall_time_s: float
     record: dict
     reached: str = ""  # the rung the primary's footprint reached (`reached_level`); "" without an effect
+    quantity: str = "accelerance"  # the measurement (`CaseSpec`): the file's FRF quantity, the sensed one, lines
+    sensed: str = "accelerance"
+    df_hz: float = 0.25
 
 
-def validation_specs(cases: int, seed: int) -> list[CaseSpec]:
-    """The first ``cases`` diagnosis cases of the proving ground's mix for ``seed`` (identification cases left out)."""
+def validation_specs(cases: int, seed: int, measurement: str = "drawn") -> list[CaseSpec]:
+    """The first ``cases`` diagnosis cases of the proving ground's mix for ``seed`` (identification cases left out).
+
+    ``measurement``: ``drawn``, each case measured as a lab might (`workbench.proving.cases.drawn_measurements`:
+    accelerometers or a vibrometer, accelerance, mobility or receptance in the file, 3200 to 6400 lines), the
+    default since seed 19; ``fixed``, accelerance on 0.25 Hz lines for every case, as in the runs up to seed 18.
+    """
+    if measurement not in ("drawn", "fixed"):
+        raise ValueError(f"validation_specs: measurement {measurement!r} is not drawn or fixed")
     specs: list[CaseSpec] = []
     n = cases
     while len(specs) < cases:
         specs = [s for s in case_mix(n, seed) if s.kind != IDENTIFICATION]
         n += cases - len(specs)
-    return specs[:cases]
+    return drawn_measurements(specs[:cases], seed) if measurement == "drawn" else specs[:cases]
 
 
 def _category(spec: CaseSpec) -> str:
@@ -128,7 +149,14 @@ def run_proving_case(_: Any, spec: CaseSpec) -> ProvingResult:
         result.where, tuple(a["effect"] for a in result.also), (result.partial or {}).get("effect"),
         result.confidence, result.shrinkage, bool(right), any(e not in allowed for e in named), place, wall,
         diagnosis_record(campaign.name, result),
-        reached_level(primary["footprint"], primary["channel"]) if primary else "")
+        reached_level(primary["footprint"], primary["channel"]) if primary else "", spec.quantity, spec.sensed,
+        spec.df_hz)
+
+
+def measurement_label(result: ProvingResult) -> str:
+    """``"receptance (from accelerance), 0.195 Hz"``: how a case was measured, as the scores group it."""
+    sensed = "" if result.sensed == result.quantity else f" (from {result.sensed})"
+    return f"{result.quantity}{sensed}, {result.df_hz:.3g} Hz"
 
 
 def wilson(hits: int, n: int) -> dict[str, Any]:
@@ -165,6 +193,9 @@ def score(results: list[ProvingResult]) -> dict[str, Any]:
         "single_accuracy_by_requested_level": {level: _rate([r for r in results if r.level == level],
                                                             lambda r: r.category == "single", lambda r: r.right)
                                                for level in LEVELS},
+        "single_accuracy_by_measurement": {label: _rate([r for r in results if measurement_label(r) == label],
+                                                        single, lambda r: r.right)
+                                           for label in sorted({measurement_label(r) for r in results})},
         "faint_none": _rate(results, lambda r: r.reached == FAINT, lambda r: r.verdict == NONE),
         "single_partial_right": _rate(results, single, lambda r: r.right or r.partial == r.truth),
         "confident_wrong": _rate(results, lambda r: True, lambda r: r.named_wrong),
