@@ -1,7 +1,8 @@
 """Do the diagnosis's verdicts hold when the same cases are measured another way?
 
-The proving ground measures accelerance on 0.25 Hz lines (`workbench.proving.campaigns.CampaignSettings`); a lab
-may export mobility (a vibrometer), receptance, or coarser lines. For the chosen cases of a validation seed (the
+The proving ground's fixed measurement is accelerance on 0.25 Hz lines (`workbench.proving.campaigns.CampaignSettings`;
+the validation draws a lab's mix since seed 19, `workbench.proving.cases.drawn_measurements`); a lab may export
+mobility (a vibrometer), receptance, or coarser lines. The cases here are measured the fixed way, then varied. For the chosen cases of a validation seed (the
 same articles, effects and nuisances: only the measurement differs), each campaign is diagnosed blind as the
 proving ground makes it and in each variant, and the verdict printed side by side; then, per variant, how many
 verdicts are the right one (`workbench.proving.cases.expected_verdict`; a combined case counts its primary in the

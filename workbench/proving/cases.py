@@ -29,6 +29,11 @@ is of that size (development seeds 10 and 11: a largest residual of 0.12 % in th
   tightening levels are labels only: the moduli are independent draws of the law, which is what the
   identification assumes.
 
+**Measurement**: `case_mix` measures every case as accelerance on 0.25 Hz lines over 0-1250 Hz;
+`drawn_measurements` (the blind validation's default since seed 19) draws each case's as a lab's: the sensors
+(accelerometers, or a laser vibrometer's mobility), the quantity the software exports (accelerance, mobility or
+receptance, the noise staying the sensed quantity's), and 3200, 5000 or 6400 lines over the band.
+
 The nominal file is the frame with ``beam_theory = "timoshenko"`` (the article's beams are Timoshenko: the
 gap is the effect, not the beam theory), except in ``shear_deformation`` cases, where it is Euler-Bernoulli.
 """
