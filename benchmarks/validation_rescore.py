@@ -17,7 +17,7 @@ import csv
 from pathlib import Path
 
 from workbench.proving.cases import reached_level
-from workbench.workflow.proving_validation import ProvingResult, score
+from workbench.workflow.proving_validation import ProvingResult, measurement_label, score
 
 REPO = Path(__file__).resolve().parents[1]
 HEADLINE = ("single_accuracy", "confident_wrong", "none_false_positive", "outside_unexplained", "faint_none")
@@ -70,6 +70,12 @@ def main() -> None:
     print(f"{'>=' + str(since):>6s} " + " ".join(_rate(s[k]) for k in HEADLINE))
     by_level = ", ".join(f"{level} {_rate(v).strip()}" for level, v in s["single_accuracy_by_level"].items())
     print(f"pooled single effects by the rung reached: {by_level}")
+    # how the cases were measured (seeds up to 18: accelerance on 0.25 Hz lines, all of them)
+    for what, key in (("quantity", lambda r: measurement_label(r).split(",")[0]),
+                      ("line spacing", lambda r: f"{r.df_hz:.3g} Hz")):
+        groups = sorted({key(r) for r in pooled})
+        cells = [f"{g} {_rate(score([r for r in pooled if key(r) == g])['single_accuracy']).strip()}" for g in groups]
+        print(f"pooled single effects by {what}: " + ", ".join(cells))
 
 
 if __name__ == "__main__":

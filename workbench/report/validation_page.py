@@ -30,7 +30,7 @@ SCORES = (  # key, label, what it should be (the issue's targets)
 LEVEL_TABLES = (  # key, what the level is
     ("single_accuracy_by_level", "footprint reached"),
     ("single_accuracy_by_requested_level", "footprint asked for (every single case)"),
-    ("single_accuracy_by_measurement", "measurement: the file's quantity (the sensed one), line spacing"),
+    ("single_accuracy_by_measurement", "measured as"),
 )
 
 
