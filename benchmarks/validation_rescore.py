@@ -1,6 +1,8 @@
 """The blind validations in ``reports/`` scored again with the current scores, from their ``cases.csv``.
 
-Run from the repository root: ``python benchmarks/validation_rescore.py [--since SEED]`` (under a second).
+Run from the repository root: ``python benchmarks/validation_rescore.py [--since SEED]`` (under a second), or
+``--pair RUN_A RUN_B`` (two output directories of the same cases, e.g. ``reports/diagnosis_validation_seed19
+reports/diagnosis_validation_paired/seed19_fixed``): the cases whose verdict, place, ``also`` or partial differ.
 
 A run's verdicts are fixed once it has run; the scores read them. Since the footprint each case reached was
 recorded from the start, the runs of seeds before the ``reached`` column (up to 12) are read at the rung
@@ -52,10 +54,31 @@ def _rate(s: dict) -> str:
     return f"{s['hits']:4d}/{s['n']:<4d} {100 * s['rate']:5.1f} [{100 * lo:4.1f}, {100 * hi:4.1f}]"
 
 
+def pair(first: Path, second: Path) -> None:
+    """Print the cases of two runs of the same cases whose verdict, place, ``also`` or partial differ."""
+    a, b = (load(Path(d) / "cases.csv") for d in (first, second))
+    if [r.seed for r in a] != [r.seed for r in b]:
+        raise SystemExit(f"--pair: {first} and {second} do not hold the same cases")
+
+    def said(r: ProvingResult) -> tuple:
+        return r.verdict, r.where, r.also, r.partial
+
+    differ = [(x, y) for x, y in zip(a, b) if said(x) != said(y)]
+    print(f"{len(differ)} of {len(a)} cases differ (verdict, place, also, partial)")
+    for x, y in differ:
+        print(f"case {x.case:3d} {x.frame:21s} {x.category:8s} {x.truth:20s} {x.reached:6s} | "
+              f"{measurement_label(x)}: {said(x)} right={x.right} | {measurement_label(y)}: {said(y)} right={y.right}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--since", type=int, default=8, help="pool the seeds from this one on (default 8)")
-    since = parser.parse_args().since
+    parser.add_argument("--pair", nargs=2, metavar="RUN", help="two runs of the same cases: what differs")
+    args = parser.parse_args()
+    if args.pair:
+        pair(*args.pair)
+        return
+    since = args.since
     runs = sorted((int(p.parent.name.removeprefix("diagnosis_validation_seed")), p)
                   for p in (REPO / "reports").glob("diagnosis_validation_seed*/cases.csv"))
     print(f"{'seed':>6s} " + " ".join(f"{k:>24s}" for k in HEADLINE))
