@@ -19,7 +19,7 @@ import csv
 from pathlib import Path
 
 from workbench.proving.cases import reached_level
-from workbench.workflow.proving_validation import ProvingResult, measurement_label, score
+from workbench.workflow.proving_validation import ProvingResult, measurement_label, quantity_label, score
 
 REPO = Path(__file__).resolve().parents[1]
 HEADLINE = ("single_accuracy", "confident_wrong", "none_false_positive", "outside_unexplained", "faint_none")
@@ -42,8 +42,8 @@ def load(path: Path) -> list[ProvingResult]:
             row["where"] or None, tuple(row["also"].split()), row["partial"] or None, float(row["confidence"]),
             float(row["shrinkage"]), row["right"] == "True", row["named_wrong"] == "True",
             None if row["place_right"] in ("", "None") else row["place_right"] == "True",
-            float(row["wall_time_s"]), {}, reached, row.get("quantity", "accelerance"),
-            row.get("sensed", "accelerance"), float(row.get("df_hz", 0.25))))  # seeds before 19: accelerance, 0.25 Hz
+            float(row["wall_time_s"]), {}, reached, row.get("quantity", ProvingResult.quantity),
+            row.get("sensed", ProvingResult.sensed), float(row.get("df_hz", ProvingResult.df_hz))))  # before seed 19
     return results
 
 
@@ -94,7 +94,7 @@ def main() -> None:
     by_level = ", ".join(f"{level} {_rate(v).strip()}" for level, v in s["single_accuracy_by_level"].items())
     print(f"pooled single effects by the rung reached: {by_level}")
     # how the cases were measured (seeds up to 18: accelerance on 0.25 Hz lines, all of them)
-    for what, key in (("quantity", lambda r: measurement_label(r).split(",")[0]),
+    for what, key in (("quantity", quantity_label),
                       ("line spacing", lambda r: f"{r.df_hz:.3g} Hz")):
         groups = sorted({key(r) for r in pooled})
         cells = [f"{g} {_rate(score([r for r in pooled if key(r) == g])['single_accuracy']).strip()}" for g in groups]

@@ -68,6 +68,11 @@ class CampaignSettings:
     synthesis_factor: float = 3.0  # modes up to this times f_max are summed
     nuisances: NuisanceSettings = field(default_factory=NuisanceSettings)
 
+    @property
+    def sensed_quantity(self) -> str:
+        """The quantity the sensors measure (``sensed``, or the file's ``quantity`` when it is None)."""
+        return self.sensed or self.quantity
+
     def frequency_axis(self) -> np.ndarray:
         """(n,) Hz: 0 to ``f_max_hz`` every ``df_hz``."""
         return self.df_hz * np.arange(int(round(self.f_max_hz / self.df_hz)) + 1)
@@ -141,7 +146,7 @@ def _test(built: _Built, moduli: dict[str, float], temperature: float, settings:
     count = settings.truth_modes + 6
     modes = solve_modes(d.system.stiffness, d.system.mass, count, max_hz=settings.synthesis_factor * settings.f_max_hz)
     zeta = built.damping.ratios(modes.frequency_hz, rng.tests)
-    sensed = settings.sensed or settings.quantity
+    sensed = settings.sensed_quantity
     noisy = _exported(add_noise(frf(d.system, modes, axis, zeta, sensed), built.snr_db, rng.noise), axis, sensed,
                       settings.quantity)
     n = max(settings.truth_modes, int(np.sum(modes.frequency_hz <= settings.f_max_hz)))
@@ -222,7 +227,7 @@ def simulate_campaign(nominal: Frame, article: Article, factors: Sequence[Factor
                         frf=frf_table)
     truth = {
         "generator": "workbench.proving", "campaign": name, "seed": seed, "quantity": settings.quantity,
-        "sensed": settings.sensed or settings.quantity, "f_max_hz": settings.f_max_hz, "df_hz": settings.df_hz,
+        "sensed": settings.sensed_quantity, "f_max_hz": settings.f_max_hz, "df_hz": settings.df_hz,
         "joints": {j: {"mean_pa": float(laws[j][0]), "cov": float(laws[j][1]), "moduli_pa": v.tolist(),
                        "sample_mean_pa": float(v.mean()),
                        "sample_cov": float(v.std(ddof=1) / v.mean()) if v.size > 1 else 0.0}

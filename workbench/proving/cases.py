@@ -114,9 +114,9 @@ class CaseSpec:
     design: str = "blind"
     joint_cov: float = 0.02
     blind_tests: int = 8
-    quantity: str = "accelerance"
-    sensed: str = "accelerance"
-    df_hz: float = 0.25
+    quantity: str = CampaignSettings.quantity  # the proving ground's fixed measurement, by default
+    sensed: str = CampaignSettings.quantity
+    df_hz: float = CampaignSettings.df_hz
 
     def settings(self) -> CampaignSettings:
         """The campaign's measurement settings (the nuisances at their defaults)."""

@@ -57,7 +57,8 @@ from workbench.proving.mechanisms import NONE, OUTSIDE
 from workbench.rig.effects import ADDED_MASS, UNEXPLAINED
 from workbench.workflow.measured import measured_modes
 
-__all__ = ["ProvingResult", "validation_specs", "run_proving_case", "measurement_label", "wilson", "score"]
+__all__ = ["ProvingResult", "validation_specs", "run_proving_case", "quantity_label", "measurement_label", "wilson",
+           "score"]
 
 
 @dataclass(frozen=True)
@@ -86,9 +87,9 @@ class ProvingResult:
     wall_time_s: float
     record: dict
     reached: str = ""  # the rung the primary's footprint reached (`reached_level`); "" without an effect
-    quantity: str = "accelerance"  # the measurement (`CaseSpec`): the file's FRF quantity, the sensed one, lines
-    sensed: str = "accelerance"
-    df_hz: float = 0.25
+    quantity: str = CaseSpec.quantity  # the measurement (`CaseSpec`): the file's FRF quantity, the sensed one, lines
+    sensed: str = CaseSpec.sensed
+    df_hz: float = CaseSpec.df_hz
 
 
 def validation_specs(cases: int, seed: int, measurement: str = "drawn") -> list[CaseSpec]:
@@ -153,10 +154,14 @@ def run_proving_case(_: Any, spec: CaseSpec) -> ProvingResult:
         spec.df_hz)
 
 
+def quantity_label(result: ProvingResult) -> str:
+    """``"receptance (from accelerance)"``: the file's quantity, and the sensed one where it differs."""
+    return result.quantity + ("" if result.sensed == result.quantity else f" (from {result.sensed})")
+
+
 def measurement_label(result: ProvingResult) -> str:
     """``"receptance (from accelerance), 0.195 Hz"``: how a case was measured, as the scores group it."""
-    sensed = "" if result.sensed == result.quantity else f" (from {result.sensed})"
-    return f"{result.quantity}{sensed}, {result.df_hz:.3g} Hz"
+    return f"{quantity_label(result)}, {result.df_hz:.3g} Hz"
 
 
 def wilson(hits: int, n: int) -> dict[str, Any]:
