@@ -15,11 +15,12 @@ from workbench.extraction.levenberg import LMResult, lm
 
 __all__ = ["MIN_SIDE_POINTS", "PAIR_ANGLES_DEG", "LOG_ZETA_BOUNDS", "taubin", "geometric", "pair_damping", "pairs",
            "mobility_factor", "wrap_angle", "sweep_angle", "sweep_gradient", "clip_log_zeta", "trend_basis",
-           "SENSE_RETRY", "fit_sweep", "angle_rms"]
+           "SENSE_RETRY", "SETTLED_RMS", "fit_sweep", "angle_rms"]
 
 MIN_SIDE_POINTS = 2      # points each side of resonance for the damping pairs
 PAIR_ANGLES_DEG = (90.0, 135.0, 160.0)  # half-power region first, widened if too few points
 SENSE_RETRY = 0.3  # rad RMS angle misfit above which the anticlockwise sweep is tried too (`fit_sweep`)
+SETTLED_RMS = 0.1  # rad RMS: a sweep fit this close to the angles has found its mode; other starts are not tried
 LOG_ZETA_BOUNDS = (-30.0, 5.0)  # log zeta in the fits' models: a wandering damping is a failed start, not an answer
 
 
@@ -186,7 +187,9 @@ def fit_sweep(omega: np.ndarray, phi: np.ndarray,
         phi0 = float(phi[k] - sense * step[k] / 2)
         for z0 in (zeta0, zeta0 / 3.0, zeta0 * 3.0):
             attempt(phi0, w0, z0, sense)
-        assert best is not None  # three starts always ran
+            if best is not None and angle_rms(best, phi) < SETTLED_RMS:
+                break
+        assert best is not None  # one start at least ran
         if sense > 0 and peak_start is not None and angle_rms(best, phi) >= SENSE_RETRY:
             start = peak_start()
             if start is not None:
