@@ -414,7 +414,7 @@ def test_a_sweep_fit_that_settles_at_its_first_start_is_the_best_of_all_three(mo
 
     rng = np.random.default_rng(58)
     elsewhere = 0
-    for _ in range(160):
+    for _ in range(60):
         f_r, zeta = rng.uniform(20.0, 900.0), 10 ** rng.uniform(-3.3, -1.7)
         df = f_r * zeta * 10 ** rng.uniform(-0.7, 1.0)  # a half-power bandwidth of 0.2 to 10 lines
         f = f_r + df * (np.arange(-12, 13) + rng.uniform(-0.5, 0.5))
