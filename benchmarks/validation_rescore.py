@@ -1,6 +1,7 @@
 """The blind validations in ``reports/`` scored again with the current scores, from their ``cases.csv``.
 
 Run from the repository root: ``python benchmarks/validation_rescore.py [--since SEED]`` (under a second), or
+``--outcomes`` (also what each kind of case was called: right, a wrong name, ``none`` or ``unexplained``), or
 ``--pair RUN_A RUN_B`` (two output directories of the same cases, e.g. ``reports/diagnosis_validation_seed19
 reports/diagnosis_validation_paired/seed19_fixed``): the cases whose verdict, place, ``also`` or partial differ.
 
@@ -70,10 +71,30 @@ def pair(first: Path, second: Path) -> None:
               f"{measurement_label(x)}: {said(x)} right={x.right} | {measurement_label(y)}: {said(y)} right={y.right}")
 
 
+def outcomes(results: list[ProvingResult]) -> None:
+    """Print what each kind of case was called, pooled: right, a wrong name, or the verdict it got instead
+    (``none``: no channel had a gap; ``unexplained``), single effects by the rung their footprint reached.
+    """
+    def called(r: ProvingResult) -> str:
+        return "right" if r.right else ("named wrong" if r.named_wrong else r.verdict)
+
+    groups = [(f"single {level}", [r for r in results if r.category == "single" and r.reached == level])
+              for level in ("small", "medium", "large")]
+    groups += [(category, [r for r in results if r.category == category and r.reached != "faint"])
+               for category in ("none", "outside", "combined")]
+    for name, rows in groups:
+        counts: dict[str, int] = {}
+        for r in rows:
+            counts[called(r)] = counts.get(called(r), 0) + 1
+        cells = ", ".join(f"{k} {v}" for k, v in sorted(counts.items(), key=lambda kv: -kv[1]))
+        print(f"pooled {name:15s} {len(rows):4d} cases: {cells}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--since", type=int, default=8, help="pool the seeds from this one on (default 8)")
     parser.add_argument("--pair", nargs=2, metavar="RUN", help="two runs of the same cases: what differs")
+    parser.add_argument("--outcomes", action="store_true", help="also what each kind of case was called, pooled")
     args = parser.parse_args()
     if args.pair:
         pair(*args.pair)
@@ -99,6 +120,8 @@ def main() -> None:
         groups = sorted({key(r) for r in pooled})
         cells = [f"{g} {_rate(score([r for r in pooled if key(r) == g])['single_accuracy']).strip()}" for g in groups]
         print(f"pooled single effects by {what}: " + ", ".join(cells))
+    if args.outcomes:
+        outcomes(pooled)
 
 
 if __name__ == "__main__":

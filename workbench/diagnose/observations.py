@@ -354,6 +354,11 @@ def damping_variance(obs: Observations) -> np.ndarray:
     """(n_cond, n_modes) variance of each mean damping ratio against a damping model: its standard error's
     square plus ``(damping_sd * median zeta)^2``, the model's error on the campaign's typical damping (not on
     each mode's own, which would allow a mode a joint damps more error the more it is damped).
+
+    Known flaw, measured and not yet fixed: the model's error is added to each excitation level's mean on its
+    own, though a linear damping model's error is the same at every level, so with two levels the chi-square
+    rejects at about 6 % where it states 1 % (`benchmarks/damping_null_calibration.py`,
+    ``reports/diagnosis.md``).
     """
     if obs.damping is None or obs.damping_se is None:
         raise ValueError("damping_variance: no damping was measured")
