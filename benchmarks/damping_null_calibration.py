@@ -1,6 +1,6 @@
 """How often the damping channel's chi-square rejects at its stated 1 % when nothing but chance is there.
 
-Run from the repository root: ``python benchmarks/damping_null_calibration.py`` (a few seconds). Not a test: it
+Run from the repository root: ``python benchmarks/damping_null_calibration.py`` (about 15 s). Not a test: it
 measures a known flaw for the next change of the rules (``reports/diagnosis.md``, "Since seed 20").
 
 `workbench.diagnose.observations.damping_chi2` adds the damping model's error (``DAMPING_MODEL_SD`` of the
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2 as chi2_law
 
-from workbench.diagnose.observations import DAMPING_MODEL_SD, Discrepancy, Observations, damping_chi2
+from workbench.diagnose.observations import DAMPING_MODEL_SD, Discrepancy, Observations, damping_chi2, damping_variance
 from workbench.workflow.proving_validation import wilson
 
 DRAWS = 10000
@@ -44,28 +44,28 @@ def main() -> None:
         rejected = {"as computed": 0, "levels' mean": 0}
         drop_rejected = {"as computed": 0, "levels' mean": 0}
         model = DAMPING_MODEL_SD * zeta
+        limit_all, limit_mean, limit_drop = (chi2_law.ppf(0.99, k) for k in (n_cond * n_modes, n_modes, 1))
         for _ in range(DRAWS):
             shared = model * rng.standard_normal(n_modes)
             measured = zeta + shared[None, :] + se_rel * zeta * rng.standard_normal((n_cond, n_modes))
             se = np.full((n_cond, n_modes), se_rel * zeta)
             obs = _observations(measured, se)
             base = np.full_like(measured, zeta)
-            # the best non-negative multiple of the share, each formula's own least squares
-            computed = damping_chi2(obs, base)
-            scale = DAMPING_MODEL_SD * float(np.median(measured))  # the diagnosis's: the typical measured ratio
-            w = 1.0 / (se**2 + scale**2)
             r = measured - base
-            eta = max(0.0, float(np.sum(w * r * share) / np.sum(w * share**2)))
+            variance = damping_variance(obs)  # the diagnosis's: its scale from the typical measured ratio
+            computed = damping_chi2(obs, base)
+            # the best non-negative multiple of the share, each formula's own least squares
+            eta = max(0.0, float(np.sum(r * share / variance) / np.sum(share**2 / variance)))
             computed_drop = computed - damping_chi2(obs, base + eta * share)
-            mean_var = se_rel**2 * zeta**2 / n_cond + scale**2
+            mean_var = variance[0] - se[0] ** 2 + se[0] ** 2 / n_cond  # one model error, the levels' mean error
             rm = r.mean(axis=0)
             mean_chi2 = float(np.sum(rm**2 / mean_var))
-            eta_m = max(0.0, float(np.sum(rm * share) / np.sum(share**2)))
+            eta_m = max(0.0, float(np.sum(rm * share / mean_var) / np.sum(share**2 / mean_var)))
             mean_drop = mean_chi2 - float(np.sum((rm - eta_m * share) ** 2 / mean_var))
-            rejected["as computed"] += computed > chi2_law.ppf(0.99, n_cond * n_modes)
-            rejected["levels' mean"] += mean_chi2 > chi2_law.ppf(0.99, n_modes)
-            drop_rejected["as computed"] += computed_drop > chi2_law.ppf(0.99, 1)
-            drop_rejected["levels' mean"] += mean_drop > chi2_law.ppf(0.99, 1)
+            rejected["as computed"] += computed > limit_all
+            rejected["levels' mean"] += mean_chi2 > limit_mean
+            drop_rejected["as computed"] += computed_drop > limit_drop
+            drop_rejected["levels' mean"] += mean_drop > limit_drop
         for name in rejected:
             a, b = wilson(int(rejected[name]), DRAWS), wilson(int(drop_rejected[name]), DRAWS)
             print(

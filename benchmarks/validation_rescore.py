@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import argparse
 import csv
+from collections import Counter
 from pathlib import Path
 
-from workbench.proving.cases import reached_level
+from workbench.proving.cases import FAINT, LEVELS, reached_level
 from workbench.workflow.proving_validation import ProvingResult, measurement_label, quantity_label, score
 
 REPO = Path(__file__).resolve().parents[1]
@@ -79,14 +80,11 @@ def outcomes(results: list[ProvingResult]) -> None:
         return "right" if r.right else ("named wrong" if r.named_wrong else r.verdict)
 
     groups = [(f"single {level}", [r for r in results if r.category == "single" and r.reached == level])
-              for level in ("small", "medium", "large")]
-    groups += [(category, [r for r in results if r.category == category and r.reached != "faint"])
+              for level in LEVELS]
+    groups += [(category, [r for r in results if r.category == category and r.reached != FAINT])
                for category in ("none", "outside", "combined")]
     for name, rows in groups:
-        counts: dict[str, int] = {}
-        for r in rows:
-            counts[called(r)] = counts.get(called(r), 0) + 1
-        cells = ", ".join(f"{k} {v}" for k, v in sorted(counts.items(), key=lambda kv: -kv[1]))
+        cells = ", ".join(f"{k} {v}" for k, v in Counter(called(r) for r in rows).most_common())
         print(f"pooled {name:15s} {len(rows):4d} cases: {cells}")
 
 
