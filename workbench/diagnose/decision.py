@@ -13,8 +13,9 @@ seed's run, never tuned on one):
    against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``, added masses and
    softenings by Bonferroni's term; until seed 13 every candidate's p-value was multiplied by their number,
    Bonferroni); damping likewise (its few candidates by
-   Bonferroni), with the degrees of freedom of its two fitted parameters removed. The omnibus test sees a
-   gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
+   Bonferroni), one term per mode (its levels' mean, `workbench.diagnose.observations.damping_residual`;
+   until seed 21 one per mode and level), with the degrees of freedom of its two fitted parameters removed.
+   The omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
    With several excitation levels, the frequencies' chi-square is split into the line in amplitude through
    the levels' residuals (`workbench.diagnose.observations.level_contrast_chi2`), whose covariance the
@@ -119,7 +120,8 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni.
     """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
-    n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
+    # damping: one observation per mode, its levels' mean (`damping_residual`)
+    n_d = int(np.sum(np.any(~np.isnan(obs.damping), axis=0))) if obs.damping is not None else 0
     chi2_f = frequency_chi2(obs, baseline_hz)
     chi2_d = baseline_fit.chi2 - chi2_f  # the damping baseline's in-sample part
     contrast, q = level_contrast_chi2(obs, baseline_hz) if math.isfinite(obs.scatter_dof) else (0.0, 0)

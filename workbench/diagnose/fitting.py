@@ -31,6 +31,7 @@ from workbench.diagnose.curves import Curve
 from workbench.diagnose.observations import (
     Observations,
     damping_chi2,
+    damping_levels_mean,
     damping_variance,
     frequency_chi2,
     frequency_chi2_many,
@@ -175,7 +176,7 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
 
     The trend in log frequency is the baseline's: modal damping of a real structure drifts with frequency
     (material loss, air, the supports), and a joint is named only for the part that follows its energy share.
-    Each mean is weighted by its standard error and the damping model's error (`damping_chi2`).
+    Each mode's levels' mean is weighted by its standard error and the damping model's error (`damping_chi2`).
 
     Returns
     -------
@@ -183,8 +184,9 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
     """
     if obs.damping is None or obs.damping_se is None:
         raise ValueError("damping_fit: no damping was measured")
-    d = obs.damping[:, modes_mask]
-    sd = np.sqrt(damping_variance(obs))[:, modes_mask]
+    # rows are the modes' levels' means (`damping_residual`: one model error per mode, not one per level)
+    d = damping_levels_mean(obs, obs.damping)[modes_mask]
+    sd = np.sqrt(damping_variance(obs))[modes_mask]
     ok = ~np.isnan(d)
     w = 1.0 / sd[ok]
     log_f = np.log(obs.frequency_hz / np.nanmean(obs.frequency_hz))
@@ -194,7 +196,7 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
         columns.append(np.broadcast_to(share, obs.damping.shape))
 
     def solve(cols: list[np.ndarray]) -> np.ndarray:
-        a = np.stack([c[:, modes_mask][ok] for c in cols], axis=1) * w[:, None]
+        a = np.stack([damping_levels_mean(obs, c)[modes_mask][ok] for c in cols], axis=1) * w[:, None]
         return np.linalg.lstsq(a, d[ok] * w, rcond=None)[0]
 
     coef = solve(columns)
