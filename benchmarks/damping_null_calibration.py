@@ -7,13 +7,16 @@ damping channel's calibration for ``reports/diagnosis.md``.
 Until seed 21 the diagnosis added the damping model's error (``DAMPING_MODEL_SD`` of the typical damping
 ratio) to each excitation level's mean on its own, as if it were drawn anew per level. A mode's damping model
 error is the same at every level (the model is linear), so on a campaign with two levels that chi-square
-counted it twice. `workbench.diagnose.observations.damping_chi2` now has one term per mode, the levels' mean.
+counted it twice. `workbench.diagnose.observations.damping_chi2` now reads the means under their covariance,
+one model error per mode shared by the levels (`damping_whiten`): the levels' mean against the measurement and
+the model error, the levels' differences against the measurement alone.
 Here the null is simulated directly (independent of the diagnosis's fits): per mode a shared model error of
 ``DAMPING_MODEL_SD`` of the typical damping ratio, per level a measurement error of the stated standard error;
 the baseline is known (no parameter fitted). Printed: the share of draws beyond the 99 % quantile for the
-chi-square as the diagnosis computes it (``damping_chi2``, read with one degree of freedom per mode) and for the
-former per-level chi-square (written out here, one degree of freedom per mean), with Wilson 95 % intervals;
-and the same for the drop a one-parameter candidate (a joint's damping, one-sided) reads as its evidence
+chi-square as the diagnosis computes it (``damping_chi2``) and for the former per-level chi-square (written
+out here), both read with one degree of freedom per mean, with Wilson 95 % intervals;
+the levels' differences alone (`damping_levels_chi2`, the standard errors known here, so chi-square rather
+than the diagnosis's F); and the same for the drop a one-parameter candidate (a joint's damping, one-sided) reads as its evidence
 against chi-square with one degree of freedom (one-sided: about half the stated level is right). Both take the
 model error's scale from the measured median damping ratio, as the diagnosis does.
 """
@@ -28,8 +31,8 @@ from workbench.diagnose.observations import (
     Discrepancy,
     Observations,
     damping_chi2,
-    damping_residual,
-    damping_variance,
+    damping_levels_chi2,
+    damping_whiten,
 )
 from workbench.workflow.proving_validation import wilson
 
@@ -51,27 +54,29 @@ def main() -> None:
     for n_cond in (1, 2, 4):
         rejected = {"damping_chi2": 0, "per level (old)": 0}
         drop_rejected = {"damping_chi2": 0, "per level (old)": 0}
+        levels_rejected = 0
         model = DAMPING_MODEL_SD * zeta
-        limit_mean, limit_all, limit_drop = (chi2_law.ppf(0.99, k) for k in (n_modes, n_cond * n_modes, 1))
+        limit_all, limit_drop = (chi2_law.ppf(0.99, k) for k in (n_cond * n_modes, 1))
         for _ in range(DRAWS):
             shared = model * rng.standard_normal(n_modes)
             measured = zeta + shared[None, :] + se_rel * zeta * rng.standard_normal((n_cond, n_modes))
             se = np.full((n_cond, n_modes), se_rel * zeta)
             obs = _observations(measured, se)
             base = np.full_like(measured, zeta)
-            # the diagnosis's chi-square and its best non-negative multiple of the share (levels' means)
-            variance = damping_variance(obs)
+            # the diagnosis's chi-square and its best non-negative multiple of the share
             computed = damping_chi2(obs, base)
-            rm = -damping_residual(obs, base)
-            eta = max(0.0, float(np.sum(rm * share / variance) / np.sum(share**2 / variance)))
+            a, b = damping_whiten(obs, np.broadcast_to(share, measured.shape)), damping_whiten(obs, measured - base)
+            eta = max(0.0, float(np.sum(a * b) / np.sum(a * a)))
             computed_drop = computed - damping_chi2(obs, base + eta * share)
+            levels, q = damping_levels_chi2(obs, base)
+            levels_rejected += bool(q) and levels > chi2_law.ppf(0.99, q)
             # the former chi-square: the model error added to every level's mean on its own
             r = measured - base
             old_var = se**2 + (DAMPING_MODEL_SD * float(np.median(measured))) ** 2
             old_chi2 = float(np.sum(r**2 / old_var))
             eta_o = max(0.0, float(np.sum(r * share / old_var) / np.sum(share**2 / old_var)))
             old_drop = old_chi2 - float(np.sum((r - eta_o * share) ** 2 / old_var))
-            rejected["damping_chi2"] += computed > limit_mean
+            rejected["damping_chi2"] += computed > limit_all
             rejected["per level (old)"] += old_chi2 > limit_all
             drop_rejected["damping_chi2"] += computed_drop > limit_drop
             drop_rejected["per level (old)"] += old_drop > limit_drop
@@ -82,6 +87,11 @@ def main() -> None:
                 f"[{100 * a['ci95'][0]:.2f}, {100 * a['ci95'][1]:.2f}], a candidate's drop {100 * b['rate']:.2f} % "
                 f"[{100 * b['ci95'][0]:.2f}, {100 * b['ci95'][1]:.2f}] (stated: 1 %)"
             )
+
+        if n_cond > 1:
+            c = wilson(int(levels_rejected), DRAWS)
+            print(f"{n_cond} level(s), the levels' differences alone (damping_levels_chi2, chi-square): rejects "
+                  f"{100 * c['rate']:.2f} % [{100 * c['ci95'][0]:.2f}, {100 * c['ci95'][1]:.2f}] (stated: 1 %)")
 
 
 if __name__ == "__main__":

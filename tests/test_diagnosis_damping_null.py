@@ -2,9 +2,10 @@
 
 Independent of the diagnosis's fits: the null is drawn here directly (a shared model error per mode of
 ``DAMPING_MODEL_SD`` of the typical ratio, a measurement error per level), and the chi-square's law is checked
-against the chi-square law with one degree of freedom per mode (its variance ``2 k``). The former per-level
-chi-square counted the shared error once per level, and its variance was twice the law's at two levels
-(`benchmarks/damping_null_calibration.py` prints the rejection rates).
+against the chi-square law with one degree of freedom per mean (its variance ``2 k``). The former per-level
+chi-square counted the shared error once per level, and its variance was 2.5 times the law's at two levels
+(`benchmarks/damping_null_calibration.py` prints the rejection rates). The whitening is checked against the
+quadratic form of the dense covariance it stands for.
 """
 
 from __future__ import annotations
@@ -13,7 +14,13 @@ import numpy as np
 import pytest
 
 from workbench.diagnose.fitting import damping_fit
-from workbench.diagnose.observations import DAMPING_MODEL_SD, Discrepancy, Observations, damping_chi2
+from workbench.diagnose.observations import (
+    DAMPING_MODEL_SD,
+    Discrepancy,
+    Observations,
+    damping_chi2,
+    damping_levels_chi2,
+)
 
 ZETA, SE_REL, MODES = 0.006, 0.02, 10
 
@@ -26,24 +33,52 @@ def _observations(damping: np.ndarray) -> Observations:
                         Discrepancy())
 
 
-def _null_chi2(n_cond: int, draws: int, seed: int) -> np.ndarray:
+def _null_chi2(n_cond: int, draws: int, seed: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """The whole chi-square and its levels' part, and that part's degrees of freedom, over ``draws`` nulls."""
     rng = np.random.default_rng(seed)
-    out = np.empty(draws)
+    whole, levels = np.empty(draws), np.empty(draws)
+    q = 0
     for i in range(draws):
         shared = DAMPING_MODEL_SD * ZETA * rng.standard_normal(MODES)
         measured = ZETA + shared[None, :] + SE_REL * ZETA * rng.standard_normal((n_cond, MODES))
-        out[i] = damping_chi2(_observations(measured), np.full_like(measured, ZETA))
-    return out
+        obs, base = _observations(measured), np.full_like(measured, ZETA)
+        whole[i] = damping_chi2(obs, base)
+        levels[i], q = damping_levels_chi2(obs, base)
+    return whole, levels, q
 
 
 @pytest.mark.parametrize("n_cond", [1, 2, 4])
-def test_damping_chi2_follows_one_degree_of_freedom_per_mode(n_cond: int) -> None:
-    chi2 = _null_chi2(n_cond, 3000, 21 + n_cond)
-    # chi-square law with MODES degrees of freedom: mean MODES, variance 2 MODES; the scale taken from the
-    # measured median widens it (about 1.25 times here, at any level count). The per-level formula, read
-    # against its own law (2 n_cond MODES), had 2.5 times that law's variance at two levels.
-    assert abs(chi2.mean() / MODES - 1.0) < 0.08
-    assert 0.8 < chi2.var() / (2 * MODES) < 1.6
+def test_damping_chi2_follows_the_law_of_its_means(n_cond: int) -> None:
+    whole, levels, q = _null_chi2(n_cond, 3000, 21 + n_cond)
+    k = n_cond * MODES
+    # chi-square law with one degree of freedom per mean: mean k, variance 2 k; the model error's scale taken
+    # from the measured median widens it (about 1.25 times here). The per-level formula had 2.5 times its
+    # law's variance at two levels; the bound 1.6 separates the two.
+    assert abs(whole.mean() / k - 1.0) < 0.08
+    assert 0.8 < whole.var() / (2 * k) < 1.6
+    assert q == (n_cond - 1) * MODES
+    if q:  # the levels' differences: the model error cancels, chi-square with q degrees of freedom exactly
+        assert abs(levels.mean() / q - 1.0) < 0.05
+        assert 0.85 < levels.var() / (2 * q) < 1.15
+
+
+def test_damping_chi2_is_the_quadratic_form_of_its_covariance() -> None:
+    rng = np.random.default_rng(8)
+    measured = ZETA * (1.0 + 0.2 * rng.standard_normal((3, MODES)))
+    measured[1, 4] = np.nan  # a mean the second level did not measure
+    obs = _observations(measured)
+    obs = Observations(obs.amplitude, obs.frequency_hz, obs.frequency_se, obs.frequency_cov, measured,
+                       obs.damping_se * rng.uniform(0.5, 2.0, measured.shape), obs.discrepancy)
+    predicted = ZETA * (1.0 + 0.1 * rng.standard_normal(measured.shape))
+    assert obs.damping_se is not None
+    model = DAMPING_MODEL_SD * float(np.nanmedian(measured))
+    expected = 0.0
+    for i in range(MODES):
+        ok = ~np.isnan(measured[:, i])
+        r = (predicted - measured)[ok, i]
+        cov = np.diag(obs.damping_se[ok, i] ** 2) + model**2
+        expected += float(r @ np.linalg.solve(cov, r))
+    assert damping_chi2(obs, predicted) == pytest.approx(expected, rel=1e-10)
 
 
 def test_damping_fit_on_repeated_levels_is_the_one_level_fit() -> None:

@@ -78,9 +78,9 @@ from scipy.stats import f as f_law
 
 from workbench.diagnose.combined import PairFit
 from workbench.diagnose.family import NullFamily, null_family
-from workbench.diagnose.fitting import CandidateFit, Frequencies
+from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit
 from workbench.diagnose.frf_levels import LevelTest
-from workbench.diagnose.observations import Observations, frequency_chi2, level_contrast_chi2
+from workbench.diagnose.observations import Observations, damping_levels_chi2, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
 __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
@@ -116,17 +116,24 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     without the levels' line), its degrees of freedom and threshold, and the targeted test's best candidate
     (``evidence``: its in-sample chi-square drop and its family-wise p-value); for frequencies at several
     levels, ``levels``: the line's chi-square, its degrees of freedom, the scatter's, its F p-value, the best
-    softening drop's p-value and whether the levels differ (``gap``); ``gap`` when a test rejects at `GAP_LEVEL`.
+    softening drop's p-value and whether the levels differ (``gap``); for damping at several levels likewise its
+    ``levels`` (the differences about each mode's mean, F with the scatter's degrees of freedom; no candidate
+    explains them, but a gap they make is a gap); ``gap`` when a test rejects at `GAP_LEVEL`.
     ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni.
     """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
-    # damping: one observation per mode, its levels' mean (`damping_residual`)
-    n_d = int(np.sum(np.any(~np.isnan(obs.damping), axis=0))) if obs.damping is not None else 0
+    n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
     chi2_f = frequency_chi2(obs, baseline_hz)
     chi2_d = baseline_fit.chi2 - chi2_f  # the damping baseline's in-sample part
-    contrast, q = level_contrast_chi2(obs, baseline_hz) if math.isfinite(obs.scatter_dof) else (0.0, 0)
+    split = math.isfinite(obs.scatter_dof)  # the levels' differences against their scatter's F law
+    baseline_prediction_d = (damping_fit(obs, None, np.ones(obs.frequency_hz.shape[1], bool))[0]
+                             if obs.damping is not None and obs.amplitude.size > 1 else None)
+    contrast, q = level_contrast_chi2(obs, baseline_hz) if split else (0.0, 0)
+    contrast_d, q_d = damping_levels_chi2(obs, baseline_prediction_d) if split and baseline_prediction_d is not None \
+        else (0.0, 0)
     out = {}
-    for name, value, dof in (("frequency", chi2_f - contrast, n_f - q), ("damping", chi2_d, n_d - DAMPING_PARAMETERS)):
+    for name, value, dof in (("frequency", chi2_f - contrast, n_f - q),
+                             ("damping", chi2_d - contrast_d, n_d - q_d - DAMPING_PARAMETERS)):
         if dof < 1:
             continue
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
@@ -144,6 +151,11 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
             out[name]["levels"] = {"chi2": float(contrast), "dof": q, "scatter_dof": obs.scatter_dof,
                                    "p_value": p_levels, "softening_p_value": softening["p_value"],
                                    "gap": bool(min(p_levels, softening["p_value"]) < GAP_LEVEL)}
+            omnibus = omnibus or p_levels < GAP_LEVEL
+        if name == "damping" and q_d:  # a damping that moves with the level: no candidate of the vocabulary's
+            p_levels = float(f_law.sf(contrast_d / q_d, q_d, obs.scatter_dof))
+            out[name]["levels"] = {"chi2": float(contrast_d), "dof": q_d, "scatter_dof": obs.scatter_dof,
+                                   "p_value": p_levels, "gap": bool(p_levels < GAP_LEVEL)}
             omnibus = omnibus or p_levels < GAP_LEVEL
         out[name]["omnibus"] = bool(omnibus)
         out[name]["gap"] = bool(omnibus or evidence["p_value"] < GAP_LEVEL)

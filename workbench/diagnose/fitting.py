@@ -31,8 +31,7 @@ from workbench.diagnose.curves import Curve
 from workbench.diagnose.observations import (
     Observations,
     damping_chi2,
-    damping_levels_mean,
-    damping_variance,
+    damping_whiten,
     frequency_chi2,
     frequency_chi2_many,
     frequency_score,
@@ -176,7 +175,7 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
 
     The trend in log frequency is the baseline's: modal damping of a real structure drifts with frequency
     (material loss, air, the supports), and a joint is named only for the part that follows its energy share.
-    Each mode's levels' mean is weighted by its standard error and the damping model's error (`damping_chi2`).
+    The means are weighted by their standard errors and the damping model's error, one per mode (`damping_chi2`).
 
     Returns
     -------
@@ -184,20 +183,17 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
     """
     if obs.damping is None or obs.damping_se is None:
         raise ValueError("damping_fit: no damping was measured")
-    # rows are the modes' levels' means (`damping_residual`: one model error per mode, not one per level)
-    d = damping_levels_mean(obs, obs.damping)[modes_mask]
-    sd = np.sqrt(damping_variance(obs))[modes_mask]
-    ok = ~np.isnan(d)
-    w = 1.0 / sd[ok]
     log_f = np.log(obs.frequency_hz / np.nanmean(obs.frequency_hz))
     trend = np.nan_to_num(log_f - np.nanmean(log_f))
     columns = [np.ones_like(obs.damping), trend] if int(np.sum(modes_mask)) >= 3 else [np.ones_like(obs.damping)]
     if share is not None:
         columns.append(np.broadcast_to(share, obs.damping.shape))
+    # generalised least squares under the means' covariance (one model error per mode, `damping_whiten`)
+    d = damping_whiten(obs, obs.damping)[:, modes_mask].ravel()
 
     def solve(cols: list[np.ndarray]) -> np.ndarray:
-        a = np.stack([damping_levels_mean(obs, c)[modes_mask][ok] for c in cols], axis=1) * w[:, None]
-        return np.linalg.lstsq(a, d[ok] * w, rcond=None)[0]
+        a = np.stack([damping_whiten(obs, c)[:, modes_mask].ravel() for c in cols], axis=1)
+        return np.linalg.lstsq(a, d, rcond=None)[0]
 
     coef = solve(columns)
     if share is not None and coef[-1] < 0:  # a joint does not remove damping

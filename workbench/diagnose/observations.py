@@ -34,8 +34,8 @@ error (`Discrepancy`), so that the diagnosis does not read an as-built tolerance
   one error per mode, shared by the excitation levels;
 - damping: each mode's damping ratio is modelled to `DAMPING_MODEL_SD` (20 %) of the campaign's typical
   (median) damping ratio; modal damping of a real structure scatters from mode to mode by that much whatever
-  its model. Like the per-mode frequency error it is one error per mode, shared by the excitation levels, so
-  the damping chi-square has one term per mode: its levels' mean (`damping_residual`).
+  its model. Like the per-mode frequency error it is one error per mode, shared by the excitation levels
+  (`damping_whiten`): the levels' differences are measured against the scatter alone.
 
 These values were set on a development mix of the proving ground (`workbench.proving`, seed 9001) and frozen
 before its validation run (another seed); ``diagnosis.json`` states them.
@@ -53,7 +53,7 @@ from workbench.extraction.records import MeasuredModes
 __all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "FORM_SD", "Discrepancy",
            "Observations", "observations", "level_contrast_chi2", "frequency_chi2", "frequency_chi2_many",
            "frequency_score", "damping_chi2",
-           "damping_residual", "damping_variance", "damping_levels_mean", "chi2", "rms"]
+           "damping_whiten", "damping_levels_chi2", "chi2", "rms"]
 
 RELATIVE_FLOOR = 1e-4  # floor of the relative standard error of a mean frequency
 DAMPING_FLOOR = 0.02  # floor of the relative standard error of a mean damping ratio
@@ -342,53 +342,51 @@ def frequency_score(obs: Observations, predicted_hz: np.ndarray, reference_hz: n
 
 
 def damping_chi2(obs: Observations, predicted: np.ndarray) -> float:
-    """Chi-square of predicted damping ratios against the measured means, one term per mode (`damping_variance`);
-    0 without measured damping.
+    """Chi-square of predicted damping ratios (n_cond, n_modes) against the measured means under one damping
+    model error per mode shared by the levels (`damping_whiten`); 0 without measured damping.
     """
     if obs.damping is None or obs.damping_se is None:
         return 0.0
-    r = damping_residual(obs, predicted)
-    return float(np.nansum(r * r / damping_variance(obs)))
+    return float(np.sum(damping_whiten(obs, predicted - obs.damping) ** 2))
 
 
-def damping_residual(obs: Observations, predicted: np.ndarray) -> np.ndarray:
-    """(n_modes,) the excitation levels' mean of ``predicted - measured`` damping ratio, per mode (NaN where
-    no level measured the mode's damping).
+def damping_whiten(obs: Observations, x: np.ndarray) -> np.ndarray:
+    """(n_cond + 1, n_modes) ``x`` (n_cond, n_modes) on the damping means written as independent unit-variance
+    terms; 0 where a mean is missing. Its squares sum to ``x^T V^-1 x``, mode by mode.
 
-    One term per mode rather than per level: the damping candidates are linear models, whose error on a mode is
-    the same at every level, so a chi-square with one term per level counts that error once per level (with two
-    levels it rejected at 5.9 % for a stated 1 %, `benchmarks/damping_null_calibration.py`). A damping that moves
-    between levels is not a damping candidate's evidence.
-    """
-    if obs.damping is None:
-        raise ValueError("damping_residual: no damping was measured")
-    return damping_levels_mean(obs, np.broadcast_to(predicted, obs.damping.shape) - obs.damping)
-
-
-def damping_variance(obs: Observations) -> np.ndarray:
-    """(n_modes,) variance of each mode's levels' mean damping ratio against a damping model: the mean's
-    measurement variance (``sum_c se_c^2 / n^2`` over its ``n`` levels) plus ``(damping_sd * median zeta)^2``,
-    the model's error on the campaign's typical damping (not on each mode's own, which would allow a mode a joint
-    damps more error the more it is damped), counted once per mode (`damping_residual`). NaN for a mode without
-    measured damping.
+    A mode's means at the levels share one model error, ``damping_sd * median zeta`` (module docstring), on top
+    of each level's standard error ``se_c``: ``V = diag(se_c^2) + (damping_sd * median zeta)^2 1 1^T``. With
+    ``w_c = 1 / se_c^2``, ``W = sum w_c`` and the weighted mean ``x_bar = sum w_c x_c / W``, the first ``n_cond``
+    rows are ``sqrt(w_c) (x_c - x_bar)`` (the levels' differences, against the measurement alone) and the last
+    ``x_bar / sqrt(1 / W + model^2)`` (the levels' mean, against the measurement and the model's error), by
+    Sherman-Morrison. Until seed 21 the model error was added to every level's mean on its own, which counted it
+    once per level (with two levels the chi-square rejected at 5.9 % for a stated 1 %,
+    `benchmarks/damping_null_calibration.py`).
     """
     if obs.damping is None or obs.damping_se is None:
-        raise ValueError("damping_variance: no damping was measured")
-    present = ~np.isnan(obs.damping)
-    count = present.sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        measured = np.where(present, obs.damping_se, 0.0) ** 2
-        mean_var = np.where(count > 0, measured.sum(axis=0) / np.maximum(count, 1) ** 2, np.nan)
-    return mean_var + (obs.discrepancy.damping_sd * float(np.nanmedian(obs.damping))) ** 2
-
-
-def damping_levels_mean(obs: Observations, x: np.ndarray) -> np.ndarray:
-    """(n_modes,) mean over the excitation levels of ``x`` (n_cond, n_modes) where damping was measured."""
-    assert obs.damping is not None
+        raise ValueError("damping_whiten: no damping was measured")
+    x = np.broadcast_to(x, obs.damping.shape)
     present = ~np.isnan(obs.damping) & ~np.isnan(x)
-    count = present.sum(axis=0)
-    total = np.where(present, x, 0.0).sum(axis=0)
-    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    w = np.where(present, 1.0 / np.where(present, obs.damping_se, 1.0) ** 2, 0.0)
+    total = w.sum(axis=0)
+    some = total > 0
+    x0 = np.where(present, x, 0.0)
+    mean = np.where(some, (w * x0).sum(axis=0) / np.where(some, total, 1.0), 0.0)
+    model = obs.discrepancy.damping_sd * float(np.nanmedian(obs.damping))
+    mean_sd = np.sqrt(np.where(some, 1.0 / np.where(some, total, 1.0), 1.0) + model**2)
+    return np.vstack([np.sqrt(w) * np.where(present, x0 - mean, 0.0), np.where(some, mean / mean_sd, 0.0)[None, :]])
+
+
+def damping_levels_chi2(obs: Observations, predicted: np.ndarray) -> tuple[float, int]:
+    """The levels' part of `damping_chi2` (their differences about each mode's weighted mean, against the
+    measurement alone) and its degrees of freedom (the present means less one per mode that has any).
+    """
+    if obs.damping is None or obs.damping_se is None:
+        return 0.0, 0
+    rows = damping_whiten(obs, predicted - obs.damping)[:-1]
+    present = ~np.isnan(obs.damping)
+    q = int(present.sum() - np.sum(present.any(axis=0)))
+    return float(np.sum(rows**2)), q
 
 
 def chi2(residual: np.ndarray, se: np.ndarray) -> float:
