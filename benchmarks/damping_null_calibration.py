@@ -15,7 +15,7 @@ Here the null is simulated directly (independent of the diagnosis's fits): per m
 the baseline is known (no parameter fitted). Printed: the share of draws beyond the 99 % quantile for the
 chi-square as the diagnosis computes it (``damping_chi2``) and for the former per-level chi-square (written
 out here), both read with one degree of freedom per mean, with Wilson 95 % intervals;
-the levels' differences alone (`damping_levels_chi2`, the standard errors known here, so chi-square rather
+the levels' line in amplitude alone (`damping_levels_chi2`, the standard errors known here, so chi-square rather
 than the diagnosis's F); and the same for the drop a one-parameter candidate (a joint's damping, one-sided) reads as its evidence
 against chi-square with one degree of freedom (one-sided: about half the stated level is right). Both take the
 model error's scale from the measured median damping ratio, as the diagnosis does.
@@ -90,7 +90,7 @@ def main() -> None:
 
         if n_cond > 1:
             c = wilson(int(levels_rejected), DRAWS)
-            print(f"{n_cond} level(s), the levels' differences alone (damping_levels_chi2, chi-square): rejects "
+            print(f"{n_cond} level(s), the levels' line alone (damping_levels_chi2, chi-square): rejects "
                   f"{100 * c['rate']:.2f} % [{100 * c['ci95'][0]:.2f}, {100 * c['ci95'][1]:.2f}] (stated: 1 %)")
 
 

@@ -13,8 +13,10 @@ seed's run, never tuned on one):
    against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``, added masses and
    softenings by Bonferroni's term; until seed 13 every candidate's p-value was multiplied by their number,
    Bonferroni); damping likewise (its few candidates by
-   Bonferroni), one term per mode (its levels' mean, `workbench.diagnose.observations.damping_residual`;
-   until seed 21 one per mode and level), with the degrees of freedom of its two fitted parameters removed.
+   Bonferroni), its means read under one model error per mode shared by the levels
+   (`workbench.diagnose.observations.damping_whiten`; until seed 21 one per mode and level), with the degrees of
+   freedom of its fitted parameters removed (its level, and its trend from three modes on; two always until
+   seed 21), and at several levels the line in amplitude tested apart as for the frequencies.
    The omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
    With several excitation levels, the frequencies' chi-square is split into the line in amplitude through
@@ -78,7 +80,7 @@ from scipy.stats import f as f_law
 
 from workbench.diagnose.combined import PairFit
 from workbench.diagnose.family import NullFamily, null_family
-from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit
+from workbench.diagnose.fitting import DAMPING_TREND_MODES, CandidateFit, Frequencies, damping_fit
 from workbench.diagnose.frf_levels import LevelTest
 from workbench.diagnose.observations import Observations, damping_levels_chi2, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
@@ -91,7 +93,6 @@ EXPLAINED_LEVEL = 0.1  # a candidate's held-out chi-square within its 90 % quant
 MIN_SHRINKAGE = 0.0  # and its held-out RMS error shrinks by more than this (at all: the chi-square decides)
 NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
 PAIR_EVIDENCE = 6.0  # each effect of a pair lowers the in-sample chi-square by this ("strong" on the BIC scale)
-DAMPING_PARAMETERS = 2  # the damping baseline's level and trend
 UNION_BOUND = (ADDED_MASS.name, AMPLITUDE_SOFTENING.name)  # candidates the null draws do not stand for (family.py)
 
 
@@ -117,8 +118,8 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     (``evidence``: its in-sample chi-square drop and its family-wise p-value); for frequencies at several
     levels, ``levels``: the line's chi-square, its degrees of freedom, the scatter's, its F p-value, the best
     softening drop's p-value and whether the levels differ (``gap``); for damping at several levels likewise its
-    ``levels`` (the differences about each mode's mean, F with the scatter's degrees of freedom; no candidate
-    explains them, but a gap they make is a gap); ``gap`` when a test rejects at `GAP_LEVEL`.
+    ``levels`` (the line in amplitude, F with the scatter's degrees of freedom; no candidate explains it, but a
+    gap it makes is a gap); ``gap`` when a test rejects at `GAP_LEVEL`.
     ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni.
     """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
@@ -132,8 +133,9 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     contrast_d, q_d = damping_levels_chi2(obs, baseline_prediction_d) if split and baseline_prediction_d is not None \
         else (0.0, 0)
     out = {}
+    trend = obs.damping is not None and np.sum(np.any(~np.isnan(obs.damping), axis=0)) >= DAMPING_TREND_MODES
     for name, value, dof in (("frequency", chi2_f - contrast, n_f - q),
-                             ("damping", chi2_d - contrast_d, n_d - q_d - DAMPING_PARAMETERS)):
+                             ("damping", chi2_d - contrast_d, n_d - q_d - (2 if trend else 1))):
         if dof < 1:
             continue
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))

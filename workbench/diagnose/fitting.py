@@ -35,12 +35,14 @@ from workbench.diagnose.observations import (
     frequency_chi2,
     frequency_chi2_many,
     frequency_score,
+    mode_frequency_hz,
     rms,
 )
 from workbench.rig.effects import JOINT_DAMPING
 
-__all__ = ["CandidateFit", "Frequencies", "fit_curve", "damping_fit", "evaluate"]
+__all__ = ["DAMPING_TREND_MODES", "CandidateFit", "Frequencies", "fit_curve", "damping_fit", "evaluate"]
 
+DAMPING_TREND_MODES = 3  # the damping fit takes a trend in log frequency from this many modes on
 SCAN_POINTS = 161  # parameter values scanned before Brent's method
 BOUND_TOLERANCE = 1e-3  # of a parameter's range: a fit this close to a range's end sits at that bound
 
@@ -183,9 +185,9 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
     """
     if obs.damping is None or obs.damping_se is None:
         raise ValueError("damping_fit: no damping was measured")
-    log_f = np.log(obs.frequency_hz / np.nanmean(obs.frequency_hz))
-    trend = np.nan_to_num(log_f - np.nanmean(log_f))
-    columns = [np.ones_like(obs.damping), trend] if int(np.sum(modes_mask)) >= 3 else [np.ones_like(obs.damping)]
+    log_f = np.log(mode_frequency_hz(obs) / np.nanmean(obs.frequency_hz))  # the same at every level
+    trend = np.broadcast_to(np.nan_to_num(log_f - np.nanmean(log_f)), obs.damping.shape)
+    columns = [np.ones_like(obs.damping)] + ([trend] if int(np.sum(modes_mask)) >= DAMPING_TREND_MODES else [])
     if share is not None:
         columns.append(np.broadcast_to(share, obs.damping.shape))
     # generalised least squares under the means' covariance (one model error per mode, `damping_whiten`)

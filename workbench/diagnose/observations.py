@@ -53,7 +53,7 @@ from workbench.extraction.records import MeasuredModes
 __all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "FORM_SD", "Discrepancy",
            "Observations", "observations", "level_contrast_chi2", "frequency_chi2", "frequency_chi2_many",
            "frequency_score", "damping_chi2",
-           "damping_whiten", "damping_levels_chi2", "chi2", "rms"]
+           "damping_whiten", "damping_levels_chi2", "mode_frequency_hz", "chi2", "rms"]
 
 RELATIVE_FLOOR = 1e-4  # floor of the relative standard error of a mean frequency
 DAMPING_FLOOR = 0.02  # floor of the relative standard error of a mean damping ratio
@@ -377,16 +377,28 @@ def damping_whiten(obs: Observations, x: np.ndarray) -> np.ndarray:
     return np.vstack([np.sqrt(w) * np.where(present, x0 - mean, 0.0), np.where(some, mean / mean_sd, 0.0)[None, :]])
 
 
+def mode_frequency_hz(obs: Observations) -> np.ndarray:
+    """(n_modes,) each mode's mean frequency over the levels, Hz (NaN for a mode no level measured)."""
+    present = ~np.isnan(obs.frequency_hz)
+    count = present.sum(axis=0)
+    return np.where(count > 0, np.where(present, obs.frequency_hz, 0.0).sum(axis=0) / np.maximum(count, 1), np.nan)
+
+
 def damping_levels_chi2(obs: Observations, predicted: np.ndarray) -> tuple[float, int]:
-    """The levels' part of `damping_chi2` (their differences about each mode's weighted mean, against the
-    measurement alone) and its degrees of freedom (the present means less one per mode that has any).
+    """The chi-square of the line in amplitude through the damping residuals of the levels' means, and its
+    degrees of freedom: `level_contrast_chi2` for damping ratios. The line's slope, mode by mode, under the
+    measurement errors alone (the model's error, one per mode, cancels in it); ``(0, 0)`` with one level.
     """
-    if obs.damping is None or obs.damping_se is None:
+    if obs.damping is None or obs.damping_se is None or obs.amplitude.size < 2:
         return 0.0, 0
-    rows = damping_whiten(obs, predicted - obs.damping)[:-1]
-    present = ~np.isnan(obs.damping)
-    q = int(present.sum() - np.sum(present.any(axis=0)))
-    return float(np.sum(rows**2)), q
+    r = np.broadcast_to(predicted, obs.damping.shape) - obs.damping
+    keep = np.all(np.isfinite(r), axis=0) & (obs.scattered if obs.scattered is not None else True)
+    if not np.any(keep):
+        return 0.0, 0
+    lever = obs.amplitude - obs.amplitude.mean()
+    lever = lever / np.sum(lever**2)
+    slope = lever @ r[:, keep]
+    return float(np.sum(slope**2 / (lever**2 @ obs.damping_se[:, keep] ** 2))), int(np.sum(keep))
 
 
 def chi2(residual: np.ndarray, se: np.ndarray) -> float:

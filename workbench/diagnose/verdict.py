@@ -57,6 +57,7 @@ from workbench.diagnose.observations import (
     RELATIVE_FLOOR,
     Discrepancy,
     Observations,
+    mode_frequency_hz,
     observations,
 )
 from workbench.extraction.records import MeasuredModes
@@ -129,12 +130,15 @@ def _damping_forms(obs: Observations, share: np.ndarray) -> dict[str, tuple[np.n
 
     ``hysteretic``: a loss factor (friction, material loss), ``zeta_i = eta * e_i`` with ``e_i`` the joint's
     share of mode ``i``'s strain energy; ``viscous``: a dashpot across the joint, whose dissipation per cycle
-    grows with frequency, ``zeta_i = eta * e_i * f_i / f_ref`` (``f_ref`` the measured modes' mean
-    frequency, where ``eta`` is read). Over a band of a decade or more the two forms damp the modes very
-    differently, and a dashpot fitted as a loss factor predicts no held-out mode.
+    grows with frequency, ``zeta_i = eta * e_i * f_i / f_ref`` (``f_i`` the mode's mean frequency over the
+    levels, ``f_ref`` the measured modes' mean frequency, where ``eta`` is read). Over a band of a decade or
+    more the two forms damp the modes very differently, and a dashpot fitted as a loss factor predicts no
+    held-out mode.
     """
     reference = float(np.nanmean(obs.frequency_hz))
-    ratio = np.nan_to_num(obs.frequency_hz / reference)
+    # each mode's frequency over the levels: a linear dashpot damps a mode the same at every level, and the
+    # levels' own frequencies would let it follow a damping that moves with the level (Brake-Reuss, until seed 21)
+    ratio = np.nan_to_num(mode_frequency_hz(obs) / reference)
     return {"hysteretic": (np.asarray(share, float), {"form": "hysteretic"}),
             "viscous": (share * ratio, {"form": "viscous", "reference_hz": reference})}
 
