@@ -146,10 +146,11 @@ def _levels_text(gap: dict) -> str:
     levels = gap.get("levels")
     if not levels:
         return ""
+    softening = (f", softening's best drop p = {levels['softening_p_value']:.2g}" if "softening_p_value" in levels
+                 else "")  # damping's levels: no candidate of the vocabulary follows them
     return (f" (the means; the levels' line in amplitude: chi-square {levels['chi2']:.3g} on {levels['dof']}, p = "
-            f"{levels['p_value']:.2g} against F with the scatter's {levels['scatter_dof']:.0f} degrees of freedom, "
-            f"softening's best drop p = {levels.get('softening_p_value', 1.0):.2g}: the levels "
-            f"{'differ' if levels.get('gap') else 'do not differ beyond chance'})")
+            f"{levels['p_value']:.2g} against F with the scatter's {levels['scatter_dof']:.0f} degrees of freedom"
+            f"{softening}: the levels {'differ' if levels.get('gap') else 'do not differ beyond chance'})")
 
 
 def _gaps_text(record: dict) -> str:
