@@ -79,14 +79,14 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import f as f_law
 
 from workbench.diagnose.combined import PairFit
-from workbench.diagnose.family import NullFamily, null_family
+from workbench.diagnose.family import NullFamily, damping_null, null_family
 from workbench.diagnose.fitting import DAMPING_TREND_MODES, CandidateFit, Frequencies, damping_fit
 from workbench.diagnose.frf_levels import LevelTest
 from workbench.diagnose.observations import Observations, damping_levels_chi2, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
 __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
-           "channel_gaps", "decide", "frequency_null", "type_confidence"]
+           "channel_gaps", "decide", "frequency_null", "damping_family", "type_confidence"]
 
 GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
 EXPLAINED_LEVEL = 0.1  # a candidate's held-out chi-square within its 90 % quantile: explained (module docstring)
@@ -112,7 +112,8 @@ class Verdict:
 
 
 def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: CandidateFit,
-                 ranking: list[CandidateFit] | None = None, null: NullFamily | None = None) -> dict[str, dict]:
+                 ranking: list[CandidateFit] | None = None, null: NullFamily | None = None,
+                 damping: NullFamily | None = None) -> dict[str, dict]:
     """Each channel's gap tests (module docstring, 1): the omnibus chi-square (for frequencies at several levels,
     without the levels' line), its degrees of freedom and threshold, and the targeted test's best candidate
     (``evidence``: its in-sample chi-square drop and its family-wise p-value); for frequencies at several
@@ -120,7 +121,8 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     softening drop's p-value and whether the levels differ (``gap``); for damping at several levels likewise its
     ``levels`` (the line in amplitude, F with the scatter's degrees of freedom; no candidate explains it, but a
     gap it makes is a gap); ``gap`` when a test rejects at `GAP_LEVEL`.
-    ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni.
+    ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni;
+    ``damping`` likewise for the damping candidates (`damping_family`).
     """
     n_f = int(np.sum(~np.isnan(obs.frequency_hz)))
     n_d = int(np.sum(~np.isnan(obs.damping))) if obs.damping is not None else 0
@@ -141,7 +143,7 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
         whole = chi2_f if name == "frequency" else chi2_d  # the candidates' chi-squares hold the levels' part
         channel = [c for c in ranking or [] if c.channel == name]
-        family = null if name == "frequency" else None
+        family = null if name == "frequency" else damping
         evidence = _evidence(channel, whole, name, obs.scatter_dof, null=family)
         omnibus = value > threshold
         out[name] = {"chi2": float(value), "dof": dof, "threshold": threshold, "evidence": evidence,
@@ -193,6 +195,13 @@ def frequency_null(obs: Observations, ranking: list[CandidateFit],
     channel = [c for c in ranking if c.channel == "frequency"]
     drawn = [models.get(c.key, ()) if c.effect not in UNION_BOUND else () for c in channel]
     return null_family(obs, drawn, [_law(c, obs.scatter_dof) for c in channel])
+
+
+def damping_family(obs: Observations, shares: list[np.ndarray]) -> NullFamily:
+    """The damping channel's `workbench.diagnose.family.NullFamily`: its candidates' columns ``shares``, each
+    drop read with one parameter's chi-square law (`_law`).
+    """
+    return damping_null(obs, shares, _law_of(1, None))
 
 
 def _evidence(candidates: list[CandidateFit], baseline_chi2: float, channel: str,
@@ -325,14 +334,16 @@ def _channel(channel: str, ranking: list[CandidateFit], baseline: CandidateFit,
 
 def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, ranking: list[CandidateFit],
            predictions: dict, pairs: list[PairFit] | None = None, null: NullFamily | None = None,
-           frf_levels: Callable[[CandidateFit], LevelTest | None] | None = None) -> Verdict:
+           frf_levels: Callable[[CandidateFit], LevelTest | None] | None = None,
+           damping: NullFamily | None = None) -> Verdict:
     """The verdict (module docstring). ``ranking`` best held-out chi-square first; ``predictions`` each
     candidate's in-sample means by `CandidateFit.key`; ``pairs`` `workbench.diagnose.combined.pair_fits`'s
     (None: not computed, as when a single candidate explains the frequency gap); ``null`` the frequency
     candidates' `frequency_null` (None: Bonferroni); ``frf_levels`` a candidate's FRF-level test
-    (`workbench.diagnose.frf_levels.LevelChannel.test`; None: no level channel).
+    (`workbench.diagnose.frf_levels.LevelChannel.test`; None: no level channel); ``damping`` the damping
+    candidates' `damping_family` (None: Bonferroni).
     """
-    gaps = channel_gaps(obs, baseline_hz, baseline, ranking, null)
+    gaps = channel_gaps(obs, baseline_hz, baseline, ranking, null, damping)
     if not any(g["gap"] for g in gaps.values()):
         worst = max((chi2_law.cdf(g["chi2"], g["dof"]) for g in gaps.values()), default=0.0)
         return Verdict(NONE.name, None, 0.0, float(1.0 - worst), None, gaps=gaps)

@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.diagnose.fitting import BOUND_TOLERANCE, Frequencies
-from workbench.diagnose.observations import Observations
+from workbench.diagnose.fitting import BOUND_TOLERANCE, Frequencies, damping_columns
+from workbench.diagnose.observations import Observations, damping_whiten
 
-__all__ = ["NULL_DRAWS", "NULL_SEED", "TANGENT_STEP", "Tangent", "NullFamily", "tangent", "null_family"]
+__all__ = ["NULL_DRAWS", "NULL_SEED", "TANGENT_STEP", "Tangent", "NullFamily", "tangent", "null_family", "damping_null"]
 
 NULL_DRAWS = 20000  # draws of the least p-value under no effect: its share at 0.01 to about +-0.0007
 NULL_SEED = 20261128
@@ -162,3 +162,30 @@ def null_family(obs: Observations, models: Sequence[Sequence[Frequencies]],
         tangents.append(Tangent(np.hstack([p.columns for p in parts if p is not None]),
                                 tuple(s for p in parts if p is not None for s in p.one_sided)))
     return NullFamily(tangents, laws, covariance, draws)
+
+
+def damping_null(obs: Observations, shares: Sequence[np.ndarray], law: Callable[[np.ndarray], np.ndarray],
+                 draws: int = NULL_DRAWS) -> NullFamily:
+    """The `NullFamily` of the damping channel, whose candidates add ``eta * share`` (eta >= 0) to the damping
+    baseline: each ``share`` (n_modes,) or (n_cond, n_modes), read with ``law``.
+
+    Exact rather than a tangent's: a damping candidate is linear in its parameter. In the whitened metric of
+    `workbench.diagnose.observations.damping_whiten` (identity covariance) its column, less its projection on
+    the baseline's columns (`workbench.diagnose.fitting.damping_columns`, refitted with it), lowers the
+    chi-square by ``max(0, -g.z)^2 / |g|^2``. Until seed 22 the damping channel used Bonferroni's bound, which
+    counts a dashpot's hysteretic and viscous forms at one joint (nearly the same pattern over a narrow band) as
+    two independent searches and reads a one-sided drop as two-sided.
+    """
+    if obs.damping is None:
+        raise ValueError("damping_null: no damping was measured")
+    base = np.stack([damping_whiten(obs, c).ravel() for c in damping_columns(obs, np.ones(obs.damping.shape[1], bool))],
+                    axis=1)
+    q, _ = np.linalg.qr(base)
+    tangents: list[Tangent | None] = []
+    for share in shares:
+        whole = damping_whiten(obs, np.broadcast_to(share, obs.damping.shape)).ravel()
+        g = whole - q @ (q.T @ whole)
+        lowers = g @ g > 1e-12 * max(float(whole @ whole), 1e-300)  # else the baseline's level already holds it
+        tangents.append(Tangent(g[:, None] if lowers else np.zeros((g.size, 0)), (True,) if lowers else ()))
+    return NullFamily(tangents, [law] * len(tangents), np.eye(base.shape[0]), draws)
+

@@ -40,7 +40,8 @@ from workbench.diagnose.observations import (
 )
 from workbench.rig.effects import JOINT_DAMPING
 
-__all__ = ["DAMPING_TREND_MODES", "CandidateFit", "Frequencies", "fit_curve", "damping_fit", "evaluate"]
+__all__ = ["DAMPING_TREND_MODES", "CandidateFit", "Frequencies", "fit_curve", "damping_columns", "damping_fit",
+           "evaluate"]
 
 DAMPING_TREND_MODES = 3  # the damping fit takes a trend in log frequency from this many modes on
 SCAN_POINTS = 161  # parameter values scanned before Brent's method
@@ -185,9 +186,7 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
     """
     if obs.damping is None or obs.damping_se is None:
         raise ValueError("damping_fit: no damping was measured")
-    log_f = np.log(mode_frequency_hz(obs) / np.nanmean(obs.frequency_hz))  # the same at every level
-    trend = np.broadcast_to(np.nan_to_num(log_f - np.nanmean(log_f)), obs.damping.shape)
-    columns = [np.ones_like(obs.damping)] + ([trend] if int(np.sum(modes_mask)) >= DAMPING_TREND_MODES else [])
+    columns = damping_columns(obs, modes_mask)
     if share is not None:
         columns.append(np.broadcast_to(share, obs.damping.shape))
     # generalised least squares under the means' covariance (one model error per mode, `damping_whiten`)
@@ -204,6 +203,18 @@ def damping_fit(obs: Observations, share: np.ndarray | None, modes_mask: np.ndar
         columns.append(np.broadcast_to(share, obs.damping.shape))
     full = sum(c * k for c, k in zip(columns, coef))
     return np.asarray(full, float), ({JOINT_DAMPING.parameter: float(coef[-1])} if share is not None else {})
+
+
+def damping_columns(obs: Observations, modes_mask: np.ndarray) -> list[np.ndarray]:
+    """The damping baseline's columns (n_cond, n_modes) for a fit on ``modes_mask`` (`damping_fit`): its level,
+    and from `DAMPING_TREND_MODES` modes on its trend in log frequency, each mode at its mean frequency over the
+    levels (a linear model damps a mode alike at every level).
+    """
+    if obs.damping is None:
+        raise ValueError("damping_columns: no damping was measured")
+    log_f = np.log(mode_frequency_hz(obs) / np.nanmean(obs.frequency_hz))
+    trend = np.broadcast_to(np.nan_to_num(log_f - np.nanmean(log_f)), obs.damping.shape)
+    return [np.ones_like(obs.damping)] + ([trend] if int(np.sum(modes_mask)) >= DAMPING_TREND_MODES else [])
 
 
 def _held_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.ndarray:

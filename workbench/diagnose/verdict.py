@@ -46,7 +46,7 @@ from workbench.diagnose.baseline import Baseline, baseline
 from workbench.diagnose.candidates import frame_curves
 from workbench.diagnose.combined import PairFit, PairGrid, form_pairs, pair_fits
 from workbench.diagnose.curves import Curve
-from workbench.diagnose.decision import decide, frequency_null
+from workbench.diagnose.decision import damping_family, decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.frf_levels import LevelChannel, LevelTest
 from workbench.diagnose.localise import Region, energy_shares, localise
@@ -274,18 +274,22 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     ranking, predictions, models, groups = _candidate_fits(base, obs, curves, baseline_hz, fit_base_damping,
                                                            shares[0])
     null = frequency_null(obs, ranking, groups)
+    damping_null = None if obs.damping is None else damping_family(  # the damping candidates' columns, as fitted
+        obs, [share for j in range(len(base.frame.joint_names))
+              for share, _ in _damping_forms(obs, shares[0][j]).values()])
     channel = LevelChannel(base, measured)
 
     def frf_levels(fit: CandidateFit) -> LevelTest | None:
         return channel.test(fit.effect, fit.where, fit.parameters)
 
-    verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null, frf_levels=frf_levels)
+    verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, null=null, frf_levels=frf_levels,
+                     damping=damping_null)
     pairs: list[PairFit] = []
     contradicted = bool((verdict.frf_levels or {}).get("contradicted"))  # a pair would name the same single again
     if verdict.effect == UNEXPLAINED and verdict.gaps.get("frequency", {}).get("gap") and not contradicted:
         say("pairs of effects")
         pairs = pair_fits(ranking, models, obs, baseline_hz)
-        verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs, null, frf_levels)
+        verdict = decide(obs, baseline_hz, baseline_fit, ranking, predictions, pairs, null, frf_levels, damping_null)
     counts = {name: verdict.gaps[name]["observations"] if name in verdict.gaps else 0
               for name in ("frequency", "damping")}
     return Diagnosis(measured.modes, obs.amplitude, obs.frequency_hz, obs.frequency_se, baseline_hz,
