@@ -12,11 +12,12 @@ seed's run, never tuned on one):
    chi-square with the candidate's parameter count, and the least p-value of the channel's candidates read
    against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``, added masses and
    softenings by Bonferroni's term; until seed 13 every candidate's p-value was multiplied by their number,
-   Bonferroni); damping likewise (its few candidates by
-   Bonferroni), its means read under one model error per mode shared by the levels
-   (`workbench.diagnose.observations.damping_whiten`; until seed 21 one per mode and level), with the degrees of
-   freedom of its fitted parameters removed (its level, and its trend from three modes on; two always until
-   seed 21), and at several levels the line in amplitude tested apart as for the frequencies.
+   Bonferroni); damping likewise (its candidates' least p-value against its exact law under no effect,
+   `workbench.diagnose.family.damping_null`; by Bonferroni until seed 22), its means read under one model
+   error per mode shared by the levels (`workbench.diagnose.observations.damping_whiten`; until seed 21 one per
+   mode and level), with the degrees of freedom of its fitted parameters removed (its level, and its trend from
+   three modes on; two always until seed 21), and at several levels the line in amplitude tested apart as for
+   the frequencies.
    The omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
    With several excitation levels, the frequencies' chi-square is split into the line in amplitude through
