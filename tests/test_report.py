@@ -470,3 +470,22 @@ def test_an_exact_candidate_is_never_worded_as_unexplained_zero(diagnosed, tmp_p
     text = visible_text(_diagnosis_page(record, refused, tmp_path / "refused"))
     assert "unexplained 0 %" not in text and "no candidate effect was accepted" in text
     assert "not accepted" in text and said in text
+
+
+def test_a_damping_candidate_is_judged_on_its_damping_error(diagnosed, tmp_path):
+    """A joint's damping leads an ``unexplained`` ranking: the page states the share of the held-out damping
+    error it leaves, not the frequencies' (which a damping candidate leaves untouched, 100 %).
+    """
+    found, record = diagnosed
+    top = record["ranking"][0]
+    damping = {**top, "effect": "joint_damping", "where": "A", "heldout_damping_rms_error": 0.0015,
+               "heldout_freq_rms_rel_error": found.baseline.heldout_freq_rms_rel_error}
+    baseline = dataclasses.replace(found.baseline, heldout_damping_rms_error=0.002)
+    refused = dataclasses.replace(found, verdict="unexplained", where=None, shrinkage=0.0, best_hz=None,
+                                  baseline=baseline)
+    record = {**record, "verdict": {"effect": "unexplained", "where": None, "shrinkage": 0.0},
+              "ranking": [damping, *record["ranking"][1:]]}
+    text = visible_text(_diagnosis_page(record, refused, tmp_path))
+    said = "leaves 75.0 % of the nominal model's held-out error (held-out damping-ratio RMS 0.15 % against 0.2 %)"
+    assert said in text
+    assert "leaves 100.0 %" not in text

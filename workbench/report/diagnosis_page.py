@@ -9,6 +9,7 @@ shrinkage and confidence in %, each fitted parameter in its registry unit (`work
 from __future__ import annotations
 
 import html
+import math
 from typing import Any
 
 import numpy as np
@@ -117,20 +118,37 @@ def _pct(value: float | None) -> float | None:
     return None if value is None else 100 * float(value)
 
 
-def _share_text(after: float, before: float) -> str:
+def _share_text(after: float, before: float, what: str = "RMS") -> str:
     """The held-out error left as a share of the nominal model's, in words that never round an exact
-    candidate to "0 %" nor a real remainder to nothing.
+    candidate to "0 %" nor a real remainder to nothing; ``what`` names the error (relative frequency RMS, or the
+    damping ratio's RMS in points of critical damping).
     """
+    if not (math.isfinite(after) and math.isfinite(before)):
+        return "no held-out mode to judge it on"
     if before <= 0:
         return "the nominal model's held-out error is already 0"
     share = after / before
     if share == 0:
         return "the candidate leaves no held-out error at all (an exact fit of the held-out modes)"
     if share < 0.005:
-        return (f"the candidate leaves {100 * share:.2g} % of the nominal model's held-out error (held-out RMS "
+        return (f"the candidate leaves {100 * share:.2g} % of the nominal model's held-out error (held-out {what} "
                 f"{100 * after:.2g} % against {100 * before:.3g} %): below 0.5 %, an almost exact fit")
-    return (f"the candidate leaves {100 * share:.1f} % of the nominal model's held-out error (held-out RMS "
+    return (f"the candidate leaves {100 * share:.1f} % of the nominal model's held-out error (held-out {what} "
             f"{100 * after:.3g} % against {100 * before:.3g} %)")
+
+
+def _candidate_share_text(candidate: dict, diagnosis: Diagnosis) -> str | None:
+    """`_share_text` on the candidate's own channel: its damping error for a joint's damping, else its
+    frequencies'; None where the record holds no held-out error for it.
+    """
+    if candidate["effect"] == JOINT_DAMPING.name:
+        after, before = candidate["heldout_damping_rms_error"], diagnosis.baseline.heldout_damping_rms_error
+        if after is None or before is None:
+            return None
+        return _share_text(after, before, "damping-ratio RMS")
+    if candidate["heldout_freq_rms_rel_error"] is None:
+        return None
+    return _share_text(candidate["heldout_freq_rms_rel_error"], diagnosis.baseline.heldout_freq_rms_rel_error)
 
 
 def _discrepancy_text(record: dict) -> str:
@@ -194,10 +212,10 @@ def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]
         lines.append(("shrinkage", "none accepted: no candidate met the verdict's rules, so the verdict claims no "
                       "shrinkage (the record's 0)"))
         top = ranking[0] if ranking else None
-        if top is not None and top["heldout_freq_rms_rel_error"] is not None:
+        left = _candidate_share_text(top, diagnosis) if top is not None else None
+        if top is not None and left is not None:
             at = f" @ {top['where']}" if top["where"] else ""
-            lines.append(("best candidate", f"{top['effect']}{at}, not accepted: "
-                          + _share_text(top["heldout_freq_rms_rel_error"], base)))
+            lines.append(("best candidate", f"{top['effect']}{at}, not accepted: " + left))
         partial = v.get("partial")
         if partial:
             bound = (", its parameter at a bound of its range: the data ask for more of it than the range holds"
