@@ -81,7 +81,7 @@ from scipy.stats import f as f_law
 
 from workbench.diagnose.combined import PairFit
 from workbench.diagnose.family import NullFamily, damping_null, null_family
-from workbench.diagnose.fitting import DAMPING_TREND_MODES, CandidateFit, Frequencies, damping_fit
+from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_columns
 from workbench.diagnose.frf_levels import LevelTest
 from workbench.diagnose.observations import Observations, damping_levels_chi2, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
@@ -130,15 +130,12 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     chi2_f = frequency_chi2(obs, baseline_hz)
     chi2_d = baseline_fit.chi2 - chi2_f  # the damping baseline's in-sample part
     split = math.isfinite(obs.scatter_dof)  # the levels' differences against their scatter's F law
-    baseline_prediction_d = (damping_fit(obs, None, np.ones(obs.frequency_hz.shape[1], bool))[0]
-                             if obs.damping is not None and obs.amplitude.size > 1 else None)
     contrast, q = level_contrast_chi2(obs, baseline_hz) if split else (0.0, 0)
-    contrast_d, q_d = damping_levels_chi2(obs, baseline_prediction_d) if split and baseline_prediction_d is not None \
-        else (0.0, 0)
+    contrast_d, q_d = damping_levels_chi2(obs) if split else (0.0, 0)  # no damping model moves with the level
+    fitted_d = len(damping_columns(obs, np.ones(obs.frequency_hz.shape[1], bool))) if obs.damping is not None else 0
     out = {}
-    trend = obs.damping is not None and np.sum(np.any(~np.isnan(obs.damping), axis=0)) >= DAMPING_TREND_MODES
     for name, value, dof in (("frequency", chi2_f - contrast, n_f - q),
-                             ("damping", chi2_d - contrast_d, n_d - q_d - (2 if trend else 1))):
+                             ("damping", chi2_d - contrast_d, n_d - q_d - fitted_d)):
         if dof < 1:
             continue
         threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))

@@ -282,8 +282,7 @@ def level_contrast_chi2(obs: Observations, predicted_hz: np.ndarray) -> tuple[fl
     q = int(np.sum(keep))
     if q == 0:
         return 0.0, 0
-    lever = obs.amplitude - obs.amplitude.mean()
-    lever = lever / np.sum(lever ** 2)
+    lever = _lever(obs.amplitude)
     slope = lever @ r[:, keep]
     cov = np.einsum("c,cij->ij", lever ** 2, obs.frequency_cov[:, keep][:, :, keep])
     return float(slope @ np.linalg.solve(cov, slope)), q
@@ -384,21 +383,28 @@ def mode_frequency_hz(obs: Observations) -> np.ndarray:
     return np.where(count > 0, np.where(present, obs.frequency_hz, 0.0).sum(axis=0) / np.maximum(count, 1), np.nan)
 
 
-def damping_levels_chi2(obs: Observations, predicted: np.ndarray) -> tuple[float, int]:
+def damping_levels_chi2(obs: Observations, predicted: np.ndarray | None = None) -> tuple[float, int]:
     """The chi-square of the line in amplitude through the damping residuals of the levels' means, and its
     degrees of freedom: `level_contrast_chi2` for damping ratios. The line's slope, mode by mode, under the
     measurement errors alone (the model's error, one per mode, cancels in it); ``(0, 0)`` with one level.
+    ``predicted`` None: a model that damps each mode alike at every level, as every damping model of the
+    vocabulary does (`workbench.diagnose.fitting.damping_columns`), so that the line is the measured means' own.
     """
     if obs.damping is None or obs.damping_se is None or obs.amplitude.size < 2:
         return 0.0, 0
-    r = np.broadcast_to(predicted, obs.damping.shape) - obs.damping
+    r = -obs.damping if predicted is None else np.broadcast_to(predicted, obs.damping.shape) - obs.damping
     keep = np.all(np.isfinite(r), axis=0) & (obs.scattered if obs.scattered is not None else True)
     if not np.any(keep):
         return 0.0, 0
-    lever = obs.amplitude - obs.amplitude.mean()
-    lever = lever / np.sum(lever**2)
+    lever = _lever(obs.amplitude)
     slope = lever @ r[:, keep]
     return float(np.sum(slope**2 / (lever**2 @ obs.damping_se[:, keep] ** 2))), int(np.sum(keep))
+
+
+def _lever(amplitude: np.ndarray) -> np.ndarray:
+    """(n_cond,) the weights whose dot product with the levels' values is their least-squares slope in amplitude."""
+    lever = amplitude - amplitude.mean()
+    return lever / np.sum(lever**2)
 
 
 def chi2(residual: np.ndarray, se: np.ndarray) -> float:

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
 
@@ -143,6 +143,13 @@ def _damping_forms(obs: Observations, share: np.ndarray) -> dict[str, tuple[np.n
             "viscous": (share * ratio, {"form": "viscous", "reference_hz": reference})}
 
 
+def _damping_candidates(obs: Observations, joint_names: Sequence[str],
+                        joint_share: np.ndarray) -> list[tuple[str, str, np.ndarray, dict]]:
+    """Every joint's damping candidate in each form (`_damping_forms`): ``(joint, form, share, stated)``."""
+    return [(joint, form, share, stated) for j, joint in enumerate(joint_names)
+            for form, (share, stated) in _damping_forms(obs, joint_share[j]).items()]
+
+
 def _stated_damping_fit(obs: Observations, share: np.ndarray, stated: dict, mask: np.ndarray) -> tuple[np.ndarray,
                                                                                                         dict]:
     """`damping_fit` whose parameters also state the form they are read in (the report shows them)."""
@@ -191,12 +198,11 @@ def _candidate_fits(base: Baseline, obs: Observations, curves: list[Curve], base
             predictions[fit.key] = in_f
             models[fit.key] = model
     if obs.damping is not None:
-        for j, joint in enumerate(base.frame.joint_names):
-            for form, (share, stated) in _damping_forms(obs, joint_share[j]).items():
-                fit, _ = evaluate(JOINT_DAMPING.name, joint, lambda u: {}, JOINT_DAMPING.channel, None,
-                                  partial(_stated_damping_fit, obs, share, stated), obs, baseline_hz, 1, form)
-                ranking.append(fit)
-                predictions[fit.key] = baseline_hz
+        for joint, form, share, stated in _damping_candidates(obs, base.frame.joint_names, joint_share):
+            fit, _ = evaluate(JOINT_DAMPING.name, joint, lambda u: {}, JOINT_DAMPING.channel, None,
+                              partial(_stated_damping_fit, obs, share, stated), obs, baseline_hz, 1, form)
+            ranking.append(fit)
+            predictions[fit.key] = baseline_hz
     ranking.sort(key=lambda c: (c.heldout_score, c.bic))
     return ranking, predictions, models, {**{k: (m,) for k, m in models.items()}, **two_forms}
 
@@ -275,8 +281,7 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
                                                            shares[0])
     null = frequency_null(obs, ranking, groups)
     damping_null = None if obs.damping is None else damping_family(  # the damping candidates' columns, as fitted
-        obs, [share for j in range(len(base.frame.joint_names))
-              for share, _ in _damping_forms(obs, shares[0][j]).values()])
+        obs, [share for _, _, share, _ in _damping_candidates(obs, base.frame.joint_names, shares[0])])
     channel = LevelChannel(base, measured)
 
     def frf_levels(fit: CandidateFit) -> LevelTest | None:
