@@ -59,6 +59,7 @@ from workbench.proving.outside import outside_mechanism
 
 __all__ = ["CaseSpec", "KINDS", "LEVELS", "MEASUREMENTS", "MEASUREMENT_SHARES", "LINE_SPACINGS_HZ", "FOOTPRINTS",
            "DAMPING_FOOTPRINTS", "FAINT", "FAINT_SHARE", "case_mix", "drawn_measurements", "case_campaign",
+           "calibrated_primary",
            "expected_verdict", "reached_level", "design_of"]
 
 COMBINED, IDENTIFICATION = "combined", "identification"
@@ -237,6 +238,21 @@ def _joint_laws(spec: CaseSpec, frame: Frame, rng: np.random.Generator) -> dict[
     return {j.name: (j.youngs_modulus * groups[j.group][0], groups[j.group][1]) for j in frame.joints}
 
 
+def calibrated_primary(spec: CaseSpec, rng: np.random.Generator | None = None,
+                       f_max_hz: float | None = None) -> tuple[Mechanism, float, float]:
+    """A case's primary mechanism, the intensity that gives its rung's footprint and that footprint.
+
+    ``rng``: the case's effect stream (`workbench.proving.nuisances.streams`), drawn from ``spec.seed`` when None;
+    ``f_max_hz``: the band's top, the spec's settings' when None.
+    """
+    frame = proving_frame(spec.frame)
+    rng = streams(spec.seed).effect if rng is None else rng
+    band = spec.settings().f_max_hz if f_max_hz is None else f_max_hz
+    mech = _mechanism(frame, spec.kind, spec.variant, spec.where, rng)
+    x, fp = calibrate(Article(frame), mech, _target(mech, spec.level), f_max_hz=band)
+    return mech, x, fp
+
+
 def case_campaign(spec: CaseSpec, settings: CampaignSettings | None = None,
                   progress: Progress | None = None) -> tuple[Campaign, dict[str, Any]]:
     """The campaign of one case and its truth (module docstring).
@@ -258,10 +274,9 @@ def case_campaign(spec: CaseSpec, settings: CampaignSettings | None = None,
     nominal = replace(frame, beam_theory="timoshenko")
     effect = spec.kind
     article, primary, secondary = base, None, None
+    band = settings.f_max_hz  # a shift above the band is never measured
     if effect not in (NONE, IDENTIFICATION):
-        mech = _mechanism(frame, effect, spec.variant, spec.where, rng)
-        band = settings.f_max_hz  # a shift above the band is never measured
-        x, fp = calibrate(base, mech, _target(mech, spec.level), f_max_hz=band)
+        mech, x, fp = calibrated_primary(spec, rng, band)
         article, primary = mech.build(base, x), _effect_record(mech, x, fp, _target(mech, spec.level))
         if mech.nominal is not None:
             nominal = mech.nominal(frame, x)

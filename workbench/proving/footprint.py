@@ -24,7 +24,7 @@ from workbench.proving.beams import solve_modes
 from workbench.proving.fem import discretise
 from workbench.proving.mechanisms import Mechanism
 
-__all__ = ["article_frequencies", "footprint", "calibrate", "HIGH_AMPLITUDE", "FOOTPRINT_MODES"]
+__all__ = ["article_frequencies", "paired_shift", "footprint", "calibrate", "HIGH_AMPLITUDE", "FOOTPRINT_MODES"]
 
 HIGH_AMPLITUDE = 5.0  # paper 2.2.2: the high amplitude is five times the low one
 FOOTPRINT_MODES = 10  # the modes a campaign's band holds, about
@@ -39,12 +39,17 @@ def article_frequencies(article: Article, count: int = FOOTPRINT_MODES, amplitud
     return solve_modes(d.system.stiffness, d.system.mass, count).frequency_hz
 
 
-def _largest_shift(reference: np.ndarray, shifted: np.ndarray, f_max_hz: float = math.inf) -> float:
+def paired_shift(reference: np.ndarray, shifted: np.ndarray, f_max_hz: float = math.inf) -> np.ndarray:
+    """Relative shift of each reference mode below ``f_max_hz`` (Hz) to the nearest (in ratio) shifted mode."""
     reference = reference[reference <= f_max_hz]
     if reference.size == 0:
         raise ValueError(f"footprint: no mode below the band's top, {f_max_hz:g} Hz")
     nearest = shifted[np.argmin(np.abs(np.log(shifted[None, :] / reference[:, None])), axis=1)]
-    return float(np.max(np.abs(nearest / reference - 1.0)))
+    return nearest / reference - 1.0
+
+
+def _largest_shift(reference: np.ndarray, shifted: np.ndarray, f_max_hz: float = math.inf) -> float:
+    return float(np.max(np.abs(paired_shift(reference, shifted, f_max_hz))))
 
 
 def footprint(base: Article, mechanism: Mechanism, x: float, count: int = FOOTPRINT_MODES,
