@@ -11,7 +11,7 @@ locked-in axial load whose geometric stiffness the gap diagnosis needs.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -35,6 +35,8 @@ __all__ = [
     "member_length",
     "locate_point",
     "points_on_member",
+    "member_ends",
+    "moved_frame",
 ]
 
 DOF_NAMES = ("ux", "uy", "rz")
@@ -244,3 +246,32 @@ def _along(xy: np.ndarray, start: np.ndarray, end: np.ndarray, tol: float) -> np
     off = np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0]) / length
     inside = (off <= tol) & (s >= -tol) & (s <= length + tol)
     return np.where(inside, np.clip(s, 0.0, length), np.nan)
+
+
+def member_ends(frame: Frame) -> list[str]:
+    """The points that start or end a member, in the frame's order of points."""
+    ends = {n for m in frame.members for n in (m.start, m.end)}
+    return [n for n in frame.points if n in ends]
+
+
+def moved_frame(frame: Frame, offsets: dict[str, tuple[float, float]]) -> tuple[Frame, dict[str, float]]:
+    """``frame`` with member ends moved by ``offsets`` (point name -> (dx, dy), m), and each member's new length
+    over its old.
+
+    A point on a member that ends no member (a sensor, the drive) keeps its fraction of that member's length,
+    and so does each joint's span: the frame as built is the file's frame a little stretched, member by member.
+    """
+    ends = set(member_ends(frame))
+    points = {n: (x + offsets.get(n, (0.0, 0.0))[0], y + offsets.get(n, (0.0, 0.0))[1]) if n in ends else (x, y)
+              for n, (x, y) in frame.points.items()}
+    ratio = {}
+    for member in frame.members:
+        length = member_length(frame, member)
+        a, b = (np.array(points[n], float) for n in (member.start, member.end))
+        ratio[member.name] = float(np.linalg.norm(b - a)) / length
+        for name, s in points_on_member(frame.points, member).items():
+            if name not in ends:
+                xy = a + (s / length) * (b - a)
+                points[name] = (float(xy[0]), float(xy[1]))
+    joints = tuple(replace(j, span=(j.span[0] * ratio[j.member], j.span[1] * ratio[j.member])) for j in frame.joints)
+    return replace(frame, points=points, joints=joints), ratio

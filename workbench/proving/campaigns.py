@@ -37,6 +37,7 @@ from workbench.progress import Progress, report
 from workbench.proving.article import Article
 from workbench.proving.beams import QUANTITIES, damped_modes, frf, solve_modes
 from workbench.proving.fem import discretise
+from workbench.proving.geometry import perturb_geometry
 from workbench.proving.nuisances import (
     NuisanceSettings,
     Streams,
@@ -130,6 +131,10 @@ def _build(article: Article, settings: CampaignSettings, rng: Streams) -> _Built
     damping = damping_model(settings.nuisances, rng.article)
     snr = sensor_snr_db(len(frame.sensors), settings.nuisances, rng.article)
     built = replace(article, frame=frame)
+    if settings.nuisances.geometry_sd_range[1] > 0:  # drawn last: the draws above are the same with it off
+        sd = float(rng.article.uniform(*settings.nuisances.geometry_sd_range))
+        built, manufacturing["geometry"] = perturb_geometry(built, sd, rng.article)
+        manufacturing["geometry"]["geometry_sd_m"] = sd
     # what manufacturing alone does to the frequencies (joints at their means, reference temperature): a gap
     # between model and article that no effect made, which a "none" verdict has to tolerate
     shift = _frequencies(built, settings.truth_modes) / _frequencies(article, settings.truth_modes) - 1.0

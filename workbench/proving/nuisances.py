@@ -3,7 +3,10 @@
 Every case has them, the no-effect cases too:
 
 - **manufacturing**: each material's Young's modulus and density, and each member's section width and
-  thickness, off by a few tenths of a percent (one draw per article: the bars were cut once);
+  thickness, off by a few tenths of a percent (one draw per article: the bars were cut once); and the
+  geometry: each member end off where the file puts it by up to a millimetre in each direction, the
+  article's spread drawn between 0 and 1 mm (a frame measured with more or less care: a length from two ends
+  off by up to 0.35 % of a 0.4 m member; `workbench.proving.geometry`, since seed 24);
 - **damping**: a level ``zeta0``, a trend with frequency ``(f / 100 Hz) ** alpha`` and a per-mode jitter
   (lognormal), drawn per article, and a small per-test jitter (the same mode re-measured never gives the
   same damping);
@@ -40,6 +43,7 @@ class NuisanceSettings:
 
     material_sd: float = 0.003  # E and density
     section_sd: float = 0.003  # width and thickness of each member
+    geometry_sd_range: tuple[float, float] = (0.0, 0.001)  # m, each member end's x and y (none before seed 24)
     damping_range: tuple[float, float] = (0.003, 0.006)  # zeta0
     damping_trend_range: tuple[float, float] = (-0.3, 0.3)  # alpha in (f / 100 Hz) ** alpha
     damping_mode_jitter: float = 0.15
