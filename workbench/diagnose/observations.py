@@ -32,6 +32,13 @@ error (`Discrepancy`), so that the diagnosis does not read an as-built tolerance
   over the modes somewhat differently. A candidate's prediction of a mean is trusted to `FORM_SD` (10 %) of
   the change it predicts there (`frequency_score`), on top of the errors above; like the per-mode error, it is
   one error per mode, shared by the excitation levels;
+- the frame's **geometry** (``geometry``, since seed 24): a frame file's coordinates were measured with a
+  rule, and a bending mode moves as the inverse square of its member's length, so that a member end half a
+  millimetre off moves modes by a few tenths of a percent, each by its own amount. Each member end's x and y
+  are known to `GEOMETRY_SD` (0.5 mm), independently; the nominal model's sensitivities to them
+  (`workbench.diagnose.geometry`) carry that error to the modes, shared by the levels like the per-mode
+  error. Without it the stated errors read a frame whose ends sit 1 mm off as a gap in a fifth to a third of
+  no-effect campaigns (`benchmarks/detection_ceiling.py`);
 - damping: each mode's damping ratio is modelled to `DAMPING_MODEL_SD` (20 %) of the campaign's typical
   (median) damping ratio; modal damping of a real structure scatters from mode to mode by that much whatever
   its model. Like the per-mode frequency error it is one error per mode, shared by the excitation levels
@@ -44,13 +51,14 @@ before its validation run (another seed); ``diagnosis.json`` states them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from workbench.extraction.records import MeasuredModes
 
-__all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "FORM_SD", "Discrepancy",
+__all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "GEOMETRY_SD", "FORM_SD",
+           "Discrepancy",
            "Observations", "observations", "level_contrast_chi2", "frequency_chi2", "frequency_chi2_many",
            "frequency_score", "damping_chi2",
            "damping_whiten", "damping_levels_chi2", "mode_frequency_hz", "chi2", "rms"]
@@ -60,16 +68,22 @@ DAMPING_FLOOR = 0.02  # floor of the relative standard error of a mean damping r
 MODEL_FLOOR = 0.002  # per-mode relative model-form error, at least (module docstring)
 COMMON_SD = 0.004  # common relative shift of every frequency (module docstring)
 DAMPING_MODEL_SD = 0.2  # per-mode relative error of a damping model
+GEOMETRY_SD = 5e-4  # m, each member end's x and y (module docstring)
 FORM_SD = 0.1  # relative error of a candidate's predicted change: its form is not the mechanism's
 
 
 @dataclass(frozen=True)
 class Discrepancy:
-    """The model-form error a gap is judged against (module docstring); every value relative."""
+    """The model-form error a gap is judged against (module docstring); every value relative.
+
+    ``geometry`` (n_modes, k): each measured mode's relative frequency change per `GEOMETRY_SD` of each of the
+    frame's ``k`` member-end coordinates (`workbench.diagnose.geometry`); None without a frame geometry.
+    """
 
     mode_sd: float = MODEL_FLOOR
     common_sd: float = COMMON_SD
     damping_sd: float = DAMPING_MODEL_SD
+    geometry: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -103,6 +117,9 @@ class Observations:
         cov[same_cond] = self.frequency_cov[cond[:, None], mode[:, None], mode[None, :]][same_cond]
         d = self.discrepancy
         cov += d.mode_sd ** 2 * (mode[:, None] == mode[None, :]) + d.common_sd ** 2
+        if d.geometry is not None:  # one error per coordinate, shared by the conditions
+            g = d.geometry[mode]
+            cov += g @ g.T
         return present, cov
 
 

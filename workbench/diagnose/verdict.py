@@ -49,11 +49,13 @@ from workbench.diagnose.curves import Curve
 from workbench.diagnose.decision import damping_family, decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.frf_levels import LevelChannel, LevelTest
+from workbench.diagnose.geometry import geometry_columns
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import (
     DAMPING_FLOOR,
     FORM_SD,
+    GEOMETRY_SD,
     RELATIVE_FLOOR,
     Discrepancy,
     Observations,
@@ -260,6 +262,8 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
         gone = base.unpaired[None, :]
         obs = replace(obs, frequency_hz=np.where(gone, np.nan, obs.frequency_hz),
                       damping=None if obs.damping is None else np.where(gone, np.nan, obs.damping))
+    if obs.discrepancy.geometry is None:  # the frame's geometry known to GEOMETRY_SD (observations.py)
+        obs = replace(obs, discrepancy=replace(obs.discrepancy, geometry=geometry_columns(base)))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
@@ -303,6 +307,14 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
                      verdict.gaps, obs.discrepancy, verdict.frf_levels)
 
 
+def _geometry_entry(d: Discrepancy) -> dict:
+    """The geometry's part of the discrepancy: each coordinate's sd (m) and the largest per-mode sd it gives."""
+    if d.geometry is None:
+        return {}
+    largest = float(np.sqrt(np.max(np.sum(d.geometry ** 2, axis=1))))
+    return {"geometry_sd_m": GEOMETRY_SD, "geometry_largest_mode_sd": largest}
+
+
 def _ranking_entry(c: CandidateFit) -> dict:
     return {"effect": c.effect, "where": c.where, "parameters": c.parameters, "form": c.form,
             "freq_rms_rel_error": c.freq_rms_rel_error, "heldout_freq_rms_rel_error": c.heldout_freq_rms_rel_error,
@@ -335,7 +347,7 @@ def diagnosis_record(campaign_name: str, diagnosis: Diagnosis) -> dict:
                     **({"frf_levels": d.frf_levels} if d.frf_levels is not None else {})},
         "gaps": d.gaps,
         "discrepancy": {"mode_sd": d.discrepancy.mode_sd, "common_sd": d.discrepancy.common_sd,
-                        "damping_sd": d.discrepancy.damping_sd, "form_sd": FORM_SD},
+                        "damping_sd": d.discrepancy.damping_sd, "form_sd": FORM_SD, **_geometry_entry(d.discrepancy)},
         "protocol": "leave one mode out: each candidate refitted on the other modes predicts the held-out mode",
         "wall_time_s": d.wall_time_s,
     }

@@ -157,7 +157,9 @@ def _discrepancy_text(record: dict) -> str:
         return "not stated"
     return (f"{100 * d['mode_sd']:.2f} % per mode, {100 * d['common_sd']:.2f} % common to every mode, damping "
             f"{100 * d['damping_sd']:.0f} % of its typical value, a candidate's prediction "
-            f"{100 * d.get('form_sd', 0.0):.0f} % of the change it predicts")
+            f"{100 * d.get('form_sd', 0.0):.0f} % of the change it predicts"
+            + (f", each member end's position {1e3 * d['geometry_sd_m']:.1f} mm (up to "
+               f"{100 * d['geometry_largest_mode_sd']:.2f} % on a mode)" if "geometry_sd_m" in d else ""))
 
 
 def _levels_text(gap: dict) -> str:

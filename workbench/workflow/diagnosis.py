@@ -10,18 +10,19 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL, MIN_SHRINKAGE, NAME_CONFIDENCE, PAIR_EVIDENCE
 from workbench.diagnose.frf_levels import LEVEL_ALPHA, LEVEL_FLOOR
-from workbench.diagnose.observations import COMMON_SD, DAMPING_MODEL_SD, FORM_SD, MODEL_FLOOR
+from workbench.diagnose.observations import COMMON_SD, DAMPING_MODEL_SD, FORM_SD, GEOMETRY_SD, MODEL_FLOOR
 from workbench.diagnose.verdict import Diagnosis, diagnose, diagnosis_record
 from workbench.io.campaign import Campaign, load_campaign
 from workbench.io.outputs import csv_text, json_text
 from workbench.progress import Progress
 from workbench.proving.campaigns import SOURCE
+from workbench.proving.nuisances import NuisanceSettings
 from workbench.tasks import Mapper, serial_mapper
 from workbench.workflow.measured import measured_modes
 from workbench.workflow.proving_validation import ProvingResult, run_proving_case, score, validation_specs
@@ -81,12 +82,13 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
     run = mapper or serial_mapper(progress)
     results = run(run_proving_case, validation_specs(cases, seed, measurement), "validation cases", None)
     summary = score(results)
-    summary.update({"seed": seed, "generator": SOURCE, "measurement": measurement,
+    summary.update({"seed": seed, "generator": SOURCE, "nuisances": asdict(NuisanceSettings()),
+                    "measurement": measurement,
                     "wall_time_s": time.perf_counter() - start,
                     "levels": {"gap_level": GAP_LEVEL, "explained_level": EXPLAINED_LEVEL,
                                "min_shrinkage": MIN_SHRINKAGE, "name_confidence": NAME_CONFIDENCE,
                                "pair_evidence": PAIR_EVIDENCE, "model_floor": MODEL_FLOOR, "common_sd": COMMON_SD,
-                               "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD,
+                               "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD, "geometry_sd_m": GEOMETRY_SD,
                                "frf_level_floor": LEVEL_FLOOR, "frf_level_alpha": LEVEL_ALPHA}})
     summary["results"] = results
     return summary

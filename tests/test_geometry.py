@@ -1,0 +1,77 @@
+"""The frame's geometry: member ends moved (model), drawn as built (proving ground), carried to the modes
+(the diagnosis's discrepancy), against the inverse-square law of a beam's bending frequencies."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from conftest import CLAMP, straight_beam
+
+from workbench.diagnose.baseline import Baseline
+from workbench.diagnose.geometry import geometry_columns
+from workbench.model.assembly import assemble
+from workbench.model.frame import member_ends, member_length, moved_frame, points_on_member
+from workbench.model.modal import model_modes
+from workbench.proving.article import Article
+from workbench.proving.campaigns import CampaignSettings, _build
+from workbench.proving.frames import proving_frame
+from workbench.proving.nuisances import NuisanceSettings, streams
+
+
+def test_moved_frame_keeps_every_point_and_joint_at_its_fraction_of_the_member():
+    frame = proving_frame("asymmetric_four_bolt")
+    rng = np.random.default_rng(3)
+    offsets = {n: tuple(1e-3 * rng.standard_normal(2)) for n in member_ends(frame)}
+    moved, ratio = moved_frame(frame, offsets)
+    for member in frame.members:
+        old, new = member_length(frame, member), member_length(moved, member)
+        assert abs(ratio[member.name] - new / old) < 1e-12
+        assert abs(new / old - 1.0) > 1e-5  # every member did change
+        before = points_on_member(frame.points, member)
+        after = points_on_member(moved.points, member)
+        assert before.keys() <= after.keys()  # nothing fell off its member
+        for name, s in before.items():
+            assert abs(after[name] / new - s / old) < 1e-9, name
+    for j_old, j_new in zip(frame.joints, moved.joints):
+        r = ratio[j_old.member]
+        np.testing.assert_allclose(j_new.span, np.array(j_old.span) * r, rtol=1e-12)
+
+
+def _cantilever_baseline(length: float) -> Baseline:
+    frame = straight_beam(length, [{"point": "a", **CLAMP}])
+    model = assemble(frame)
+    modes = model_modes(model, 6)
+    return Baseline(frame, model, modes, np.arange(6), np.ones(6), 6)
+
+
+def test_geometry_columns_follow_the_inverse_square_law_of_a_cantilever():
+    length, sd = 0.8, 5e-4
+    base = _cantilever_baseline(length)
+    columns = geometry_columns(base, sd)  # columns: a.x, a.y, b.x, b.y
+    assert columns.shape == (6, 4)
+    model = base.model
+    ux = model.expand(base.modes.shapes)[0::3]
+    axial = np.linalg.norm(ux, axis=0) > 1e-6 * np.linalg.norm(base.modes.shapes, axis=0)
+    # f ~ 1 / L^2 in bending, 1 / L along the axis: a longer beam (free end moved along +x) is lower
+    expected = np.where(axial, -1.0, -2.0) * sd / length
+    np.testing.assert_allclose(columns[:, 2], expected, rtol=2e-3)
+    np.testing.assert_allclose(columns[:, 0], -expected, rtol=2e-3)  # the clamp moved along +x: shorter
+    assert np.all(np.abs(columns[:, [1, 3]]) < 1e-3 * np.abs(expected)[:, None])  # across the axis: second order
+
+
+def test_as_built_geometry_is_drawn_after_the_other_draws_of_the_article():
+    article = Article(proving_frame("two_bolt"))
+    on = CampaignSettings()
+    off = replace(on, nuisances=replace(NuisanceSettings(), geometry_sd_range=(0.0, 0.0)))
+    with_geometry, without = _build(article, on, streams(11)), _build(article, off, streams(11))
+    assert with_geometry.record["manufacturing"]["materials"] == without.record["manufacturing"]["materials"]
+    assert with_geometry.record["manufacturing"]["sections"] == without.record["manufacturing"]["sections"]
+    assert with_geometry.record["damping"] == without.record["damping"]
+    np.testing.assert_array_equal(with_geometry.snr_db, without.snr_db)
+    offsets = with_geometry.record["manufacturing"]["geometry"]["point_offsets_m"]
+    assert set(offsets) == set(member_ends(article.frame))
+    sd = with_geometry.record["manufacturing"]["geometry"]["geometry_sd_m"]
+    assert 0.0 <= sd <= 1e-3
+    assert max(abs(v) for xy in offsets.values() for v in xy) < 6 * sd + 1e-15
+    assert "geometry" not in without.record["manufacturing"]
