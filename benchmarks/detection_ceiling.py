@@ -13,20 +13,20 @@ error, no joint scatter) and tested along it one-sided at the diagnosis's level 
 with probability ``1 - Phi(z_0.99 - sqrt(lambda))``, ``lambda = delta^T C^-1 delta`` (Neyman-Pearson: no test
 at that level does better). Four model-form covariances ``C``:
 
-- **stated**: the diagnosis's discrepancy at its least (`workbench.diagnose.observations`: 0.2 % per mode,
-  0.4 % common; a campaign's own scatter only widens it);
-- **floor 0.15 %**: the same with a per-mode floor of 0.15 %;
-- **structured**: the generator's as-built law (below) plus an affine error of the points (lengths and angles
-  off by ``GEOMETRY_SD`` = 0.3 %), a per-mode floor of 0.1 % and the stated common shift: a discrepancy that
-  knew the tolerances' shapes, as a model-updating study with nuisance parameters would;
-- **generator**: the proving ground's as-built law alone (each material's E and density, each member's width
-  and thickness, 0.3 %: `workbench.proving.nuisances`, linearised), plus the frequencies' error floor 1e-4:
-  what a test that knew the generator's nuisance law exactly (an inverse crime) could do.
+- **before 24**: the diagnosis's discrepancy up to seed 23 at its least (`workbench.diagnose.observations`:
+  0.2 % per mode, 0.4 % common; a campaign's own scatter only widens it);
+- **stated**: the same plus the frame's geometry, each member end's x and y known to ``GEOMETRY_SD``
+  (0.5 mm; since seed 24; here with the proving ground's sensitivities, the diagnosis uses its own model's);
+- **floor 0.15 %**: the first with a per-mode floor of 0.15 %;
+- **generator**: the proving ground's as-built law itself (each material's E and density, each member's width
+  and thickness, 0.3 %; each member end's x and y by a spread drawn between 0 and 1 mm; linearised), plus the
+  frequencies' error floor 1e-4: what a test that knew the generator's nuisance law (an inverse crime) could do.
 
 **False alarms.** The share of as-built residuals alone (no effect, no measurement error: the least a campaign
-holds) beyond the 99 % chi-square quantile under the stated, the 0.15 % and the structured covariances, for
-three as-built laws: the generator's; plus the affine point error; plus twice it (lengths about 2.5 mm off on
-a 0.4 m frame). A discrepancy narrower than the as-built errors a test may meet reads them as gaps.
+holds) beyond the 99 % chi-square quantile under the first three covariances, for three as-built laws: the
+materials and sections alone (the generator up to seed 23); and with each member end 0.5 mm or 1 mm off in x
+and y (a member's length off by 0.17 % or 0.33 % on a 0.42 m frame: "a few tenths of a percent on dimensions").
+A discrepancy narrower than the as-built errors a test may meet reads them as gaps.
 
 The sensitivities are forward differences on the proving ground's own articles. No number here sets a
 threshold; it says how far one could go, and at what risk.
@@ -38,7 +38,6 @@ import argparse
 import csv
 import math
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 from functools import cache
 from pathlib import Path
 
@@ -47,20 +46,20 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import norm
 
 from workbench.diagnose.decision import GAP_LEVEL
-from workbench.diagnose.observations import COMMON_SD, MODEL_FLOOR, RELATIVE_FLOOR
-from workbench.model.frame import Frame
+from workbench.diagnose.observations import COMMON_SD, GEOMETRY_SD, MODEL_FLOOR, RELATIVE_FLOOR
+from workbench.model.frame import Frame, member_ends
 from workbench.proving.article import Article
 from workbench.proving.campaigns import CampaignSettings
 from workbench.proving.cases import FAINT, CaseSpec, calibrated_primary, reached_level
 from workbench.proving.footprint import FOOTPRINT_MODES, article_frequencies, paired_shift
 from workbench.proving.frames import FRAME_NAMES, proving_frame
+from workbench.proving.geometry import moved_article
 from workbench.proving.mechanisms import NONE
 from workbench.proving.nuisances import built_frame
 from workbench.workflow.proving_validation import validation_specs
 
 REPO = Path(__file__).resolve().parents[1]
 Z = float(norm.ppf(1.0 - GAP_LEVEL))
-GEOMETRY_SD = 0.003  # affine error of the points (module docstring)
 
 
 def effect_shift(spec: CaseSpec) -> tuple[np.ndarray, str, float] | None:
@@ -77,26 +76,26 @@ def effect_shift(spec: CaseSpec) -> tuple[np.ndarray, str, float] | None:
     return delta, reached_level(fp, "frequency"), fp
 
 
+def _shift(article: Article, f0: np.ndarray) -> np.ndarray:
+    """Relative shift of the reference modes ``f0`` (Hz) in ``article``."""
+    return paired_shift(f0, article_frequencies(article, FOOTPRINT_MODES + 4))
+
+
 def _band_shift(frame: Frame, f0: np.ndarray) -> np.ndarray:
     """Relative shift of the reference modes ``f0`` (Hz) in ``frame``'s article."""
-    return paired_shift(f0, article_frequencies(Article(frame), FOOTPRINT_MODES + 4))
-
-
-def _affine(frame: Frame, a: np.ndarray) -> Frame:
-    """``frame`` with its points mapped by ``x' = (I + A) x``, ``A = [[a0, a1], [a2, a3]]``: lengths and angles off
-    by ``a``, every point still on its members (an affine map keeps lines)."""
-    m = np.eye(2) + np.asarray(a, float).reshape(2, 2)
-    return replace(frame, points={k: (float(u), float(v)) for k, (u, v) in ((k, m @ np.array(p)) for k, p in frame.points.items())})
+    return _shift(Article(frame), f0)
 
 
 @cache
 def tolerance_sensitivities(frame_name: str, step: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
-    """``(J_built, J_geometry)``: d(relative band frequencies) per standard deviation of the generator's as-built
-    error (each material's E and
-    density, each member's width and thickness: `workbench.proving.nuisances.built_frame`) and per entry of the
-    affine map of the points (`_affine`), by forward differences of ``step``."""
+    """``(J_built, J_ends)``: d(relative band frequencies) per standard deviation of the generator's as-built
+    error (each material's E and density, each member's width and thickness:
+    `workbench.proving.nuisances.built_frame`), and per metre of each member end's x and y
+    (`workbench.proving.geometry.moved_article`), by forward differences of ``step`` on the proving ground's
+    article."""
     frame = proving_frame(frame_name)
-    f0 = article_frequencies(Article(frame))
+    base = Article(frame)
+    f0 = article_frequencies(base)
     f0 = f0[f0 <= CampaignSettings().f_max_hz]
     unit = {"materials": {n: {"youngs_modulus_factor": 1.0, "density_factor": 1.0} for n in frame.materials},
             "sections": {m.name: {"width_factor": 1.0, "thickness_factor": 1.0} for m in frame.members}}
@@ -109,33 +108,36 @@ def tolerance_sensitivities(frame_name: str, step: float = 1e-4) -> tuple[np.nda
                 record = {g: {n: dict(v) for n, v in unit[g].items()} for g in unit}
                 record[group][name][key] += step
                 built.append(sd * _band_shift(built_frame(frame, record), f0) / step)
-    geometry = [_band_shift(_affine(frame, step * np.eye(4)[k]), f0) / step for k in range(4)]
-    return np.array(built).T, np.array(geometry).T
+    ends = [_shift(moved_article(base, {name: (step * (axis == 0), step * (axis == 1))}), f0) / step
+            for name in member_ends(frame) for axis in range(2)]
+    return np.array(built).T, np.array(ends).T
 
 
 def covariances(frame_name: str, m: int) -> dict[str, np.ndarray]:
     """The model-form covariances the module docstring compares, over a frame's first ``m`` band modes."""
-    built, geometry = (j[:m] for j in tolerance_sensitivities(frame_name))
-    generator = built @ built.T
+    built, ends = (j[:m] for j in tolerance_sensitivities(frame_name))
     ones, eye = np.ones((m, m)), np.eye(m)
+    before = MODEL_FLOOR ** 2 * eye + COMMON_SD ** 2 * ones
+    spread = CampaignSettings().nuisances.geometry_sd_range
+    mean_square = (spread[0] ** 2 + spread[0] * spread[1] + spread[1] ** 2) / 3.0  # E[sd^2], sd uniform
     return {
-        "stated": MODEL_FLOOR ** 2 * eye + COMMON_SD ** 2 * ones,
+        "before 24": before,
+        "stated": before + GEOMETRY_SD ** 2 * ends @ ends.T,
         "floor 0.15 %": 0.0015 ** 2 * eye + COMMON_SD ** 2 * ones,
-        "structured": generator + GEOMETRY_SD ** 2 * geometry @ geometry.T + 0.001 ** 2 * eye + COMMON_SD ** 2 * ones,
-        "generator": generator + RELATIVE_FLOOR ** 2 * eye,
+        "generator": built @ built.T + mean_square * ends @ ends.T + RELATIVE_FLOOR ** 2 * eye,
     }
 
 
 def false_alarms(frame_name: str, draws: int, seed: int = 7) -> dict[str, dict[str, float]]:
     """Share of as-built residuals alone (no effect, no measurement error) beyond the 99 % chi-square quantile
-    under each test covariance, for three as-built laws: the generator's; plus an affine error of the points of
-    ``GEOMETRY_SD``; plus twice that."""
-    built, geometry = tolerance_sensitivities(frame_name)
+    under each test covariance, for three as-built laws: the generator's materials and sections alone (before
+    seed 24); and with each member end off by 0.5 mm, or 1 mm, in x and y."""
+    built, ends = tolerance_sensitivities(frame_name)
     m = built.shape[0]
     tests = covariances(frame_name, m)
-    laws = {"generator": built @ built.T}
-    for k, label in ((1, "+ geometry"), (2, "+ 2 x geometry")):
-        laws[label] = laws["generator"] + (k * GEOMETRY_SD) ** 2 * geometry @ geometry.T
+    laws = {"sections only": built @ built.T}
+    for sd in (5e-4, 1e-3):
+        laws[f"+ ends {1e3 * sd:.1f} mm"] = laws["sections only"] + sd ** 2 * ends @ ends.T
     rng = np.random.default_rng(seed)
     q = chi2_law.ppf(1.0 - GAP_LEVEL, m)
     out: dict[str, dict[str, float]] = {}
