@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import scipy.special
 
-from workbench.model.frame import Frame
+from workbench.model.frame import Frame, moved_frame
 
 __all__ = ["NuisanceSettings", "Streams", "streams", "perturb_frame", "built_frame", "DampingModel", "damping_model",
            "temperature_offsets", "gamma_draws", "sensor_snr_db", "add_noise"]
@@ -89,7 +89,8 @@ def perturb_frame(frame: Frame, settings: NuisanceSettings,
 
 
 def built_frame(frame: Frame, record: dict[str, Any]) -> Frame:
-    """``frame`` with a manufacturing ``record``'s errors (`perturb_frame`'s; a campaign's truth holds it).
+    """``frame`` with a manufacturing ``record``'s errors (`perturb_frame`'s; a campaign's truth holds it, with
+    the geometry's member ends when drawn).
 
     Each member gets its own section (``<section>@<member>``): a flat bar of width ``b`` and thickness
     ``t`` with ``t = sqrt(12 I / A)``, ``b = A / t``; ``A`` scales as ``b t`` and ``I`` as ``b t^3``.
@@ -107,7 +108,11 @@ def built_frame(frame: Frame, record: dict[str, Any]) -> Frame:
         key = f"{member.section}@{member.name}"
         sections[key] = replace(sec, name=key, area=sec.area * b * t, second_moment=sec.second_moment * b * t**3)
         members.append(replace(member, section=key))
-    return replace(frame, materials=materials, sections=sections, members=tuple(members))
+    built = replace(frame, materials=materials, sections=sections, members=tuple(members))
+    if "geometry" in record:  # the member ends as built (`workbench.proving.geometry`; since seed 24)
+        offsets = {n: (float(dx), float(dy)) for n, (dx, dy) in record["geometry"]["point_offsets_m"].items()}
+        built = moved_frame(built, offsets)[0]
+    return built
 
 
 @dataclass(frozen=True)
