@@ -6,10 +6,14 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from conftest import CLAMP, straight_beam
+from conftest import CLAMP, REPO, straight_beam
+from test_diagnosis import ONE_BOLT, _data, _deterministic
 
+from workbench.cli import main
 from workbench.diagnose.baseline import Baseline
 from workbench.diagnose.geometry import geometry_columns
+from workbench.diagnose.observations import GEOMETRY_SD
+from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.assembly import assemble
 from workbench.model.frame import member_ends, member_length, moved_frame, points_on_member
 from workbench.model.modal import model_modes
@@ -17,6 +21,7 @@ from workbench.proving.article import Article
 from workbench.proving.campaigns import CampaignSettings, _build
 from workbench.proving.frames import proving_frame
 from workbench.proving.nuisances import NuisanceSettings, streams
+from workbench.rig.effects import Effect
 
 
 def test_moved_frame_keeps_every_point_and_joint_at_its_fraction_of_the_member():
@@ -75,3 +80,27 @@ def test_as_built_geometry_is_drawn_after_the_other_draws_of_the_article():
     assert 0.0 <= sd <= 1e-3
     assert max(abs(v) for xy in offsets.values() for v in xy) < 6 * sd + 1e-15
     assert "geometry" not in without.record["manufacturing"]
+
+
+def test_a_frame_whose_ends_are_known_worse_reads_its_gap_against_a_wider_allowance():
+    # the rig's article (other code than the proving ground) with a softer joint: the same data read with the
+    # member ends exact, at the default 0.5 mm, and at 2 mm; a wider positive term can only lower the chi-square
+    frame = _deterministic(ONE_BOLT)
+    data = _data(frame, Effect("joint_stiffness_shift", "A", {"factor": 0.8}), seed=3)
+    chi2 = []
+    for sd in (0.0, GEOMETRY_SD, 2e-3):
+        result = diagnose(frame, data, geometry_sd_m=sd)
+        record = diagnosis_record("c", result)["discrepancy"]
+        assert record["geometry_sd_m"] == sd
+        assert (record["geometry_largest_mode_sd"] == 0.0) == (sd == 0.0)
+        chi2.append(result.gaps["frequency"]["chi2"])
+    assert chi2[0] > chi2[1] > chi2[2], chi2
+
+
+def test_the_geometry_sd_is_refused_in_one_line_when_it_is_no_length(tmp_path, capsys):
+    campaign = REPO / "campaigns" / "four_bolt_table6"
+    for bad in ("-1e-3", "nan", "1"):
+        assert main(["diagnose", str(campaign), f"--geometry-sd-m={bad}", "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert "--geometry-sd-m: must be a standard deviation in metres" in err and err.count("\n") == 1
+        assert not (tmp_path / "out").exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 import warnings
@@ -15,6 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
+from workbench.diagnose.observations import GEOMETRY_SD
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
@@ -66,6 +68,13 @@ def _positive_int(text: str) -> int:
     value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def _length_sd(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value) or value < 0.0 or value > 0.1:
+        raise argparse.ArgumentTypeError(f"must be a standard deviation in metres, 0 to 0.1, got {text}")
     return value
 
 
@@ -231,7 +240,8 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
 
     # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
     with mapper(args.workers, args.scheduler, _progress()) as tasks:  # band votes, circle fits
-        done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None, tasks)
+        done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None, tasks,
+                                 geometry_sd_m=args.geometry_sd_m)
     record, campaign = done.record, done.campaign
     pages = diagnosis_files(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
     out.commit({"diagnosis.json": json_text(record), **pages})  # the page and its tables as CSV, all or nothing
@@ -342,6 +352,9 @@ def _parser() -> argparse.ArgumentParser:
                 ("diagnosis.json", "index.html", *declared_files("diagnosis")))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
+    p.add_argument("--geometry-sd-m", type=_length_sd, default=GEOMETRY_SD, metavar="SD",
+                   help="how well the frame's member ends are known, m, each of x and y (default "
+                        f"{GEOMETRY_SD:g}: measured with a rule; 0: the file's geometry taken as exact)")
     _work_options(p, every_core=True)
 
     _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",

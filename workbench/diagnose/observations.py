@@ -76,14 +76,16 @@ FORM_SD = 0.1  # relative error of a candidate's predicted change: its form is n
 class Discrepancy:
     """The model-form error a gap is judged against (module docstring); every value relative.
 
-    ``geometry`` (n_modes, k): each measured mode's relative frequency change per `GEOMETRY_SD` of each of the
-    frame's ``k`` member-end coordinates (`workbench.diagnose.geometry`); None without a frame geometry.
+    ``geometry`` (n_modes, k): each measured mode's relative frequency change per ``geometry_sd_m`` (by default
+    `GEOMETRY_SD`) of each of the frame's ``k`` member-end coordinates (`workbench.diagnose.geometry`); None
+    without a frame geometry or with ``geometry_sd_m`` 0.
     """
 
     mode_sd: float = MODEL_FLOOR
     common_sd: float = COMMON_SD
     damping_sd: float = DAMPING_MODEL_SD
     geometry: np.ndarray | None = field(default=None, compare=False)
+    geometry_sd_m: float | None = None  # the sd ``geometry`` is per, m (0: the file's geometry exact; None: none)
 
 
 @dataclass(frozen=True)

@@ -224,7 +224,7 @@ def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: n
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
              relative_floor: float = RELATIVE_FLOOR, damping_floor: float = DAMPING_FLOOR,
-             mapper: Mapper | None = None) -> Diagnosis:
+             mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD) -> Diagnosis:
     """Locate, name and measure the gap between ``frame`` and a campaign's modes (module docstring).
 
     Parameters
@@ -236,6 +236,7 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
         and damping ratios (`workbench.diagnose.observations`).
     mapper : solves the candidates' grids (`workbench.diagnose.curves.solve_sweeps`; default, one after the
         other); the verdict is the same on any.
+    geometry_sd_m : how well a frame's member ends are known, m, each of x and y (`GEOMETRY_SD`; 0: exact).
 
     Returns
     -------
@@ -248,11 +249,12 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
         return _diagnose(frame, measured, say=notify or (lambda message: None), relative_floor=relative_floor,
-                         damping_floor=damping_floor, mapper=mapper)
+                         damping_floor=damping_floor, mapper=mapper, geometry_sd_m=geometry_sd_m)
 
 
 def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable[[str], None],
-              relative_floor: float, damping_floor: float, mapper: Mapper | None) -> Diagnosis:
+              relative_floor: float, damping_floor: float, mapper: Mapper | None,
+              geometry_sd_m: float = GEOMETRY_SD) -> Diagnosis:
     """`diagnose`'s work."""
     start = time.perf_counter()
     obs = observations(measured, relative_floor, damping_floor)
@@ -262,8 +264,9 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
         gone = base.unpaired[None, :]
         obs = replace(obs, frequency_hz=np.where(gone, np.nan, obs.frequency_hz),
                       damping=None if obs.damping is None else np.where(gone, np.nan, obs.damping))
-    if obs.discrepancy.geometry is None:  # the frame's geometry known to GEOMETRY_SD (observations.py)
-        obs = replace(obs, discrepancy=replace(obs.discrepancy, geometry=geometry_columns(base)))
+    if isinstance(frame, Frame):  # the frame's member ends known to geometry_sd_m (observations.py)
+        columns = geometry_columns(base, geometry_sd_m) if geometry_sd_m > 0 else None
+        obs = replace(obs, discrepancy=replace(obs.discrepancy, geometry=columns, geometry_sd_m=geometry_sd_m))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
@@ -309,10 +312,10 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
 
 def _geometry_entry(d: Discrepancy) -> dict:
     """The geometry's part of the discrepancy: each coordinate's sd (m) and the largest per-mode sd it gives."""
-    if d.geometry is None:
+    if d.geometry_sd_m is None:
         return {}
-    largest = float(np.sqrt(np.max(np.sum(d.geometry ** 2, axis=1))))
-    return {"geometry_sd_m": GEOMETRY_SD, "geometry_largest_mode_sd": largest}
+    largest = 0.0 if d.geometry is None else float(np.sqrt(np.max(np.sum(d.geometry ** 2, axis=1))))
+    return {"geometry_sd_m": d.geometry_sd_m, "geometry_largest_mode_sd": largest}
 
 
 def _ranking_entry(c: CandidateFit) -> dict:

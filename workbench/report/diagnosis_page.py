@@ -158,8 +158,9 @@ def _discrepancy_text(record: dict) -> str:
     return (f"{100 * d['mode_sd']:.2f} % per mode, {100 * d['common_sd']:.2f} % common to every mode, damping "
             f"{100 * d['damping_sd']:.0f} % of its typical value, a candidate's prediction "
             f"{100 * d.get('form_sd', 0.0):.0f} % of the change it predicts"
-            + (f", each member end's position {1e3 * d['geometry_sd_m']:.1f} mm (up to "
-               f"{100 * d['geometry_largest_mode_sd']:.2f} % on a mode)" if "geometry_sd_m" in d else ""))
+            + (f", each member end's position {1e3 * d['geometry_sd_m']:.2f} mm (up to "
+               f"{100 * d['geometry_largest_mode_sd']:.2f} % on a mode)" if d.get("geometry_sd_m") else "")
+            + (", the frame's geometry taken as exact" if d.get("geometry_sd_m") == 0.0 else ""))
 
 
 def _levels_text(gap: dict) -> str:
