@@ -14,7 +14,7 @@ from scipy.stats import chi2 as chi2_law
 from scipy.stats import f as f_law
 
 from workbench.cli import main
-from workbench.diagnose.observations import level_contrast_chi2, observations
+from workbench.diagnose.observations import MODEL_FLOOR, level_contrast_chi2, observations
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.extraction.records import MeasuredModes
 from workbench.model.assembly import assemble
@@ -572,7 +572,7 @@ def test_the_scatter_a_design_puts_between_tests_is_not_read_as_chance():
     plain = observations(MeasuredModes(f))
     designed = observations(MeasuredModes(f, design=level[:, None]))
     assert plain.discrepancy.mode_sd > 0.003
-    assert designed.discrepancy.mode_sd == pytest.approx(0.002)  # MODEL_FLOOR: the chance scatter is 0.05 %
+    assert designed.discrepancy.mode_sd == pytest.approx(MODEL_FLOOR)  # the chance scatter, 0.05 %, is less
     se = designed.frequency_se[0] / designed.frequency_hz[0]
     expected = np.sqrt((5e-4) ** 2 / 12 + 1e-4 ** 2)  # the chance scatter of a mean, and the relative floor
     assert np.sqrt(np.mean(se ** 2)) == pytest.approx(expected, rel=0.3)

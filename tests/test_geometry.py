@@ -11,7 +11,7 @@ from test_diagnosis import ONE_BOLT, _data, _deterministic
 
 from workbench.cli import main
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.geometry import geometry_columns
+from workbench.diagnose.geometry import geometry_columns, section_columns
 from workbench.diagnose.observations import GEOMETRY_SD
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.assembly import assemble
@@ -63,6 +63,39 @@ def test_geometry_columns_follow_the_inverse_square_law_of_a_cantilever():
     np.testing.assert_allclose(columns[:, 2], expected, rtol=2e-3)
     np.testing.assert_allclose(columns[:, 0], -expected, rtol=2e-3)  # the clamp moved along +x: shorter
     assert np.all(np.abs(columns[:, [1, 3]]) < 1e-3 * np.abs(expected)[:, None])  # across the axis: second order
+
+
+def test_section_columns_follow_a_beams_square_root_law():
+    # bending: f ~ sqrt(E I / (rho A)), so dlog f = (dlog I - dlog A) / 2; along the axis f ~ sqrt(E A / (rho A))
+    # moves with neither
+    base = _cantilever_baseline(0.8)
+    i_sd, a_sd = 0.01, 0.005
+    columns = section_columns(base, i_sd, a_sd)  # columns: the one member's I, then its A
+    assert columns.shape == (6, 2)
+    ux = base.model.expand(base.modes.shapes)[0::3]
+    axial = np.linalg.norm(ux, axis=0) > 1e-6 * np.linalg.norm(base.modes.shapes, axis=0)
+    np.testing.assert_allclose(columns[~axial, 0], 0.5 * i_sd, rtol=1e-3)
+    np.testing.assert_allclose(columns[~axial, 1], -0.5 * a_sd, rtol=1e-3)
+    assert np.all(np.abs(columns[axial]) < 1e-6)
+    assert section_columns(base, 0.0, 0.0) is None
+
+
+def test_members_sharing_a_section_are_toleranced_apart():
+    # the portal's three members share one section: a column's change must stay with its member, the beam
+    # moving the modes it bends and not a leg's
+    frame = _deterministic(ONE_BOLT)
+    assert len({m.section for m in frame.members}) < len(frame.members)
+    model = assemble(frame)
+    modes = model_modes(model, 6)
+    columns = section_columns(Baseline(frame, model, modes, np.arange(6), np.ones(6), 6))
+    n = len(frame.members)
+    assert columns.shape == (6, 2 * n)
+    # the members' I columns add up to the whole frame's I changed at once (linear to the step)
+    scaled = replace(frame, sections={k: replace(s, second_moment=s.second_moment * 1.0001)
+                                      for k, s in frame.sections.items()})
+    whole = model_modes(assemble(scaled), 6).frequency_hz / modes.frequency_hz - 1.0
+    np.testing.assert_allclose(columns[:, :n].sum(axis=1) * 1e-4 / 0.01, whole, rtol=2e-3, atol=1e-9)
+    assert np.ptp(columns[:, :n], axis=1).max() > 1e-3  # the members do not move the modes alike
 
 
 def test_as_built_geometry_is_drawn_after_the_other_draws_of_the_article():

@@ -7,40 +7,81 @@ its length) and solving its modes again gives each measured mode's relative chan
 `workbench.diagnose.observations.Discrepancy`'s ``geometry``. A bending mode moves as the inverse square of its
 member's length, so half a millimetre on a 0.4 m frame is a few tenths of a percent, mode by mode: the
 per-mode floor alone would read it as a gap.
+
+Each member's **section** likewise (`section_columns`, since seed 25): its second moment of area known to
+`workbench.diagnose.observations.SECOND_MOMENT_SD` and its area (mass per length and axial stiffness) to
+`workbench.diagnose.observations.AREA_SD`, each member independently and the two independently of each other
+(a flat bar's width and thickness would tie them; a frame's sections need not be flat bars). A bending mode
+moves as the square root of I / A of the members it bends, so its columns carry a machined bar's tolerances
+to the modes with the structure the per-mode floor lacks: the modes of one member move together.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.observations import GEOMETRY_SD
+from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
 from workbench.model.frame import Frame, member_ends, moved_frame
 from workbench.model.structure import structure_modes, structure_of
 
-__all__ = ["STEP_M", "geometry_columns"]
+__all__ = ["STEP_M", "STEP_RELATIVE", "geometry_columns", "section_columns"]
 
 STEP_M = 1e-4  # m, the forward difference's step: the change is linear over it to 1e-3 of itself
+STEP_RELATIVE = 1e-4  # a section property's relative forward-difference step
 
 
 def geometry_columns(base: Baseline, sd_m: float = GEOMETRY_SD) -> np.ndarray | None:
     """(n_measured, 2 n_ends): each measured mode's relative frequency change per ``sd_m`` (m) of each member
     end's x and y, by forward differences on the nominal model; None for a matrix model (no geometry).
 
-    Each moved model's modes are paired with the baseline's paired modes by the nearest frequency in ratio (a
-    step of 0.1 mm moves no mode past its neighbour but in a pair closer than 1e-3, where the two are one
-    mode to the pairing anyway).
+    Each moved model's modes are paired with the baseline's paired modes by the nearest frequency in ratio
+    (`_change`).
     """
     if not isinstance(base.frame, Frame):
         return None
     frame = base.frame
-    f0 = base.modes.frequency_hz[base.pairing]
     columns = []
     for name in member_ends(frame):
         for axis in range(2):
             step = (STEP_M, 0.0) if axis == 0 else (0.0, STEP_M)
-            moved, _ = moved_frame(frame, {name: step})
-            f = structure_modes(structure_of(moved), base.count).frequency_hz
-            nearest = f[np.argmin(np.abs(np.log(f[None, :] / f0[:, None])), axis=1)]
-            columns.append((nearest / f0 - 1.0) * (sd_m / STEP_M))
+            columns.append(_change(base, moved_frame(frame, {name: step})[0]) * (sd_m / STEP_M))
     return np.array(columns).T
+
+
+def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
+                    area_sd: float = AREA_SD) -> np.ndarray | None:
+    """(n_measured, 2 n_members): each measured mode's relative frequency change per ``second_moment_sd`` of
+    each member's second moment of area, then per ``area_sd`` of each member's area (relative sds), by forward
+    differences on the nominal model (module docstring); None for a matrix model or with both sds 0.
+
+    A member gets its own copy of its section (``<section>@<member>``), so that members sharing a section in
+    the file are toleranced independently; the area's step scales the member's mass and axial stiffness alike.
+    """
+    if not isinstance(base.frame, Frame) or (second_moment_sd <= 0 and area_sd <= 0):
+        return None
+    frame = base.frame
+    columns = []
+    for key, sd in (("second_moment", second_moment_sd), ("area", area_sd)):
+        for i, member in enumerate(frame.members):
+            section = frame.sections[member.section]
+            own = f"{member.section}@{member.name}"
+            stepped = replace(section, name=own, **{key: getattr(section, key) * (1.0 + STEP_RELATIVE)})
+            members = list(frame.members)
+            members[i] = replace(member, section=own)
+            moved = replace(frame, sections={**frame.sections, own: stepped}, members=tuple(members))
+            columns.append(_change(base, moved) * (sd / STEP_RELATIVE))
+    return np.array(columns).T
+
+
+def _change(base: Baseline, moved: Frame) -> np.ndarray:
+    """(n_measured,) relative change of the baseline's paired modes in ``moved``: each paired with the moved
+    model's nearest mode in ratio (a small step moves no mode past its neighbour but in a pair closer than
+    1e-3, where the two are one mode to the pairing anyway).
+    """
+    f0 = base.modes.frequency_hz[base.pairing]
+    f = structure_modes(structure_of(moved), base.count).frequency_hz
+    nearest = f[np.argmin(np.abs(np.log(f[None, :] / f0[:, None])), axis=1)]
+    return nearest / f0 - 1.0

@@ -49,14 +49,16 @@ from workbench.diagnose.curves import Curve
 from workbench.diagnose.decision import damping_family, decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.frf_levels import LevelChannel, LevelTest
-from workbench.diagnose.geometry import geometry_columns
+from workbench.diagnose.geometry import geometry_columns, section_columns
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import (
+    AREA_SD,
     DAMPING_FLOOR,
     FORM_SD,
     GEOMETRY_SD,
     RELATIVE_FLOOR,
+    SECOND_MOMENT_SD,
     Discrepancy,
     Observations,
     mode_frequency_hz,
@@ -224,7 +226,8 @@ def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: n
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
              relative_floor: float = RELATIVE_FLOOR, damping_floor: float = DAMPING_FLOOR,
-             mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD) -> Diagnosis:
+             mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD,
+             section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)) -> Diagnosis:
     """Locate, name and measure the gap between ``frame`` and a campaign's modes (module docstring).
 
     Parameters
@@ -237,6 +240,8 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     mapper : solves the candidates' grids (`workbench.diagnose.curves.solve_sweeps`; default, one after the
         other); the verdict is the same on any.
     geometry_sd_m : how well a frame's member ends are known, m, each of x and y (`GEOMETRY_SD`; 0: exact).
+    section_sd : how well each member's second moment of area and area are known, relative
+        (`SECOND_MOMENT_SD`, `AREA_SD`; (0, 0): exact).
 
     Returns
     -------
@@ -249,12 +254,14 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
         return _diagnose(frame, measured, say=notify or (lambda message: None), relative_floor=relative_floor,
-                         damping_floor=damping_floor, mapper=mapper, geometry_sd_m=geometry_sd_m)
+                         damping_floor=damping_floor, mapper=mapper, geometry_sd_m=geometry_sd_m,
+                         section_sd=section_sd)
 
 
 def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable[[str], None],
               relative_floor: float, damping_floor: float, mapper: Mapper | None,
-              geometry_sd_m: float = GEOMETRY_SD) -> Diagnosis:
+              geometry_sd_m: float = GEOMETRY_SD,
+              section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)) -> Diagnosis:
     """`diagnose`'s work."""
     start = time.perf_counter()
     obs = observations(measured, relative_floor, damping_floor)
@@ -266,7 +273,9 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
                       damping=None if obs.damping is None else np.where(gone, np.nan, obs.damping))
     if isinstance(frame, Frame):  # the frame's member ends known to geometry_sd_m (observations.py)
         columns = geometry_columns(base, geometry_sd_m) if geometry_sd_m > 0 else None
-        obs = replace(obs, discrepancy=replace(obs.discrepancy, geometry=columns, geometry_sd_m=geometry_sd_m))
+        sections = section_columns(base, *section_sd)  # and its members' sections to section_sd (observations.py)
+        obs = replace(obs, discrepancy=replace(obs.discrepancy, geometry=columns, geometry_sd_m=geometry_sd_m,
+                                               sections=sections, section_sd=section_sd))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
@@ -311,11 +320,18 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
 
 
 def _geometry_entry(d: Discrepancy) -> dict:
-    """The geometry's part of the discrepancy: each coordinate's sd (m) and the largest per-mode sd it gives."""
+    """The geometry's part of the discrepancy: each coordinate's sd (m), each member's section's relative sds,
+    and the largest per-mode sd each gives.
+    """
     if d.geometry_sd_m is None:
         return {}
     largest = 0.0 if d.geometry is None else float(np.sqrt(np.max(np.sum(d.geometry ** 2, axis=1))))
-    return {"geometry_sd_m": d.geometry_sd_m, "geometry_largest_mode_sd": largest}
+    entry = {"geometry_sd_m": d.geometry_sd_m, "geometry_largest_mode_sd": largest}
+    if d.section_sd is not None:
+        worst = 0.0 if d.sections is None else float(np.sqrt(np.max(np.sum(d.sections ** 2, axis=1))))
+        entry |= {"section_second_moment_sd": d.section_sd[0], "section_area_sd": d.section_sd[1],
+                  "section_largest_mode_sd": worst}
+    return entry
 
 
 def _ranking_entry(c: CandidateFit) -> dict:

@@ -160,7 +160,10 @@ def _discrepancy_text(record: dict) -> str:
             f"{100 * d.get('form_sd', 0.0):.0f} % of the change it predicts"
             + (f", each member end's position {1e3 * d['geometry_sd_m']:.2f} mm (up to "
                f"{100 * d['geometry_largest_mode_sd']:.2f} % on a mode)" if d.get("geometry_sd_m") else "")
-            + (", the frame's geometry taken as exact" if d.get("geometry_sd_m") == 0.0 else ""))
+            + (", the frame's geometry taken as exact" if d.get("geometry_sd_m") == 0.0 else "")
+            + (f", each member's second moment of area {100 * d['section_second_moment_sd']:.1f} % and area "
+               f"{100 * d['section_area_sd']:.1f} % (up to {100 * d['section_largest_mode_sd']:.2f} % on a mode)"
+               if d.get("section_second_moment_sd") is not None else ""))
 
 
 def _levels_text(gap: dict) -> str:

@@ -16,7 +16,15 @@ from typing import Any
 
 from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL, MIN_SHRINKAGE, NAME_CONFIDENCE, PAIR_EVIDENCE
 from workbench.diagnose.frf_levels import LEVEL_ALPHA, LEVEL_FLOOR
-from workbench.diagnose.observations import COMMON_SD, DAMPING_MODEL_SD, FORM_SD, GEOMETRY_SD, MODEL_FLOOR
+from workbench.diagnose.observations import (
+    AREA_SD,
+    COMMON_SD,
+    DAMPING_MODEL_SD,
+    FORM_SD,
+    GEOMETRY_SD,
+    MODEL_FLOOR,
+    SECOND_MOMENT_SD,
+)
 from workbench.diagnose.verdict import Diagnosis, diagnose, diagnosis_record
 from workbench.io.campaign import Campaign, load_campaign
 from workbench.io.outputs import csv_text, json_text
@@ -90,6 +98,7 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
                                "min_shrinkage": MIN_SHRINKAGE, "name_confidence": NAME_CONFIDENCE,
                                "pair_evidence": PAIR_EVIDENCE, "model_floor": MODEL_FLOOR, "common_sd": COMMON_SD,
                                "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD, "geometry_sd_m": GEOMETRY_SD,
+                               "section_second_moment_sd": SECOND_MOMENT_SD, "section_area_sd": AREA_SD,
                                "frf_level_floor": LEVEL_FLOOR, "frf_level_alpha": LEVEL_ALPHA}})
     summary["results"] = results
     return summary
