@@ -12,7 +12,7 @@ from test_diagnosis import ONE_BOLT, _data, _deterministic
 from workbench.cli import main
 from workbench.diagnose.baseline import Baseline
 from workbench.diagnose.geometry import geometry_columns, section_columns
-from workbench.diagnose.observations import GEOMETRY_SD
+from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.assembly import assemble
 from workbench.model.frame import member_ends, member_length, moved_frame, points_on_member
@@ -136,4 +136,27 @@ def test_the_geometry_sd_is_refused_in_one_line_when_it_is_no_length(tmp_path, c
         assert main(["diagnose", str(campaign), f"--geometry-sd-m={bad}", "--out", str(tmp_path / "out")]) == 2
         err = capsys.readouterr().err
         assert "--geometry-sd-m: must be a standard deviation in metres" in err and err.count("\n") == 1
+        assert not (tmp_path / "out").exists()
+
+
+def test_sections_known_worse_read_the_gap_against_a_wider_allowance():
+    # as the geometry's test: the same data with sections exact, at the default, and three times the default
+    frame = _deterministic(ONE_BOLT)
+    data = _data(frame, Effect("joint_stiffness_shift", "A", {"factor": 0.8}), seed=3)
+    chi2 = []
+    for sd in ((0.0, 0.0), (SECOND_MOMENT_SD, AREA_SD), (3 * SECOND_MOMENT_SD, 3 * AREA_SD)):
+        result = diagnose(frame, data, section_sd=sd)
+        record = diagnosis_record("c", result)["discrepancy"]
+        assert (record["section_second_moment_sd"], record["section_area_sd"]) == sd
+        assert (record["section_largest_mode_sd"] == 0.0) == (sd == (0.0, 0.0))
+        chi2.append(result.gaps["frequency"]["chi2"])
+    assert chi2[0] > chi2[1] > chi2[2], chi2
+
+
+def test_the_section_sd_is_refused_in_one_line_when_it_is_not_two_fractions(tmp_path, capsys):
+    campaign = REPO / "campaigns" / "four_bolt_table6"
+    for bad in ("0.01", "-0.01,0.005", "nan,0.005", "0.01,0.9", "a,b"):
+        assert main(["diagnose", str(campaign), f"--section-sd={bad}", "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert "--section-sd: must be two relative standard deviations" in err and err.count("\n") == 1
         assert not (tmp_path / "out").exists()

@@ -16,7 +16,7 @@ import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
-from workbench.diagnose.observations import GEOMETRY_SD
+from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
@@ -76,6 +76,18 @@ def _length_sd(text: str) -> float:
     if not math.isfinite(value) or value < 0.0 or value > 0.1:
         raise argparse.ArgumentTypeError(f"must be a standard deviation in metres, 0 to 0.1, got {text}")
     return value
+
+
+def _section_sd(text: str) -> tuple[float, float]:
+    """``I_SD,A_SD``: relative sds of each member's second moment of area and area, each 0 to 0.5."""
+    try:
+        sds = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        sds = ()
+    if len(sds) != 2 or not all(math.isfinite(v) and 0.0 <= v <= 0.5 for v in sds):
+        raise argparse.ArgumentTypeError(f"must be two relative standard deviations I_SD,A_SD, each 0 to 0.5, "
+                                         f"got {text}")
+    return sds[0], sds[1]
 
 
 def _tolerances(text: str) -> Tolerances:
@@ -241,7 +253,7 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
     # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
     with mapper(args.workers, args.scheduler, _progress()) as tasks:  # band votes, circle fits
         done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None, tasks,
-                                 geometry_sd_m=args.geometry_sd_m)
+                                 geometry_sd_m=args.geometry_sd_m, section_sd=args.section_sd)
     record, campaign = done.record, done.campaign
     pages = diagnosis_files(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
     out.commit({"diagnosis.json": json_text(record), **pages})  # the page and its tables as CSV, all or nothing
@@ -355,6 +367,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--geometry-sd-m", type=_length_sd, default=GEOMETRY_SD, metavar="SD",
                    help="how well the frame's member ends are known, m, each of x and y (default "
                         f"{GEOMETRY_SD:g}: measured with a rule; 0: the file's geometry taken as exact)")
+    p.add_argument("--section-sd", type=_section_sd, default=(SECOND_MOMENT_SD, AREA_SD), metavar="I_SD,A_SD",
+                   help="how well each member's second moment of area and area are known, relative (default "
+                        f"{SECOND_MOMENT_SD:g},{AREA_SD:g}: a machined bar; 0,0: the file's sections taken as exact)")
     _work_options(p, every_core=True)
 
     _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",

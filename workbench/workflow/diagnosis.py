@@ -52,7 +52,8 @@ class CampaignDiagnosis:
 
 
 def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callable[[str], None] | None = None,
-                      mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD) -> CampaignDiagnosis:
+                      mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD,
+                      section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)) -> CampaignDiagnosis:
     """Read a campaign, diagnose its gap (`workbench.diagnose.verdict.diagnose`), make its record.
 
     Parameters
@@ -63,12 +64,15 @@ def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callab
     mapper : runs the bands' votes, the tests' circle fits and the candidates' grids (`workbench.tasks.Mapper`);
         default, one after the other.
     geometry_sd_m : how well the frame's member ends are known, m (`workbench.diagnose.observations.GEOMETRY_SD`).
+    section_sd : how well each member's second moment of area and area are known, relative
+        (`workbench.diagnose.observations.SECOND_MOMENT_SD`, `AREA_SD`).
     """
     campaign = load_campaign(path)
     if notify:
         notify("modes of every test (modes.csv or circle fit)")
     measured = measured_modes(campaign, count, "diagnose", mapper)
-    result = diagnose(campaign.frame, measured, notify, mapper=mapper, geometry_sd_m=geometry_sd_m)
+    result = diagnose(campaign.frame, measured, notify, mapper=mapper, geometry_sd_m=geometry_sd_m,
+                      section_sd=section_sd)
     record = diagnosis_record(campaign.name, result)
     record["synthetic"] = bool(campaign.synthetic)
     return CampaignDiagnosis(campaign, result, record)
