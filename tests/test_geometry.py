@@ -160,3 +160,18 @@ def test_the_section_sd_is_refused_in_one_line_when_it_is_not_two_fractions(tmp_
         err = capsys.readouterr().err
         assert "--section-sd: must be two relative standard deviations" in err and err.count("\n") == 1
         assert not (tmp_path / "out").exists()
+
+
+def test_a_validation_run_diagnoses_under_the_allowance_it_states():
+    # `validate-diagnosis --geometry-sd-m 0 --section-sd 0,0`: every case's diagnosis takes the frame as exact,
+    # and validation.json's levels say so
+    from workbench.workflow.diagnosis import validate
+    from workbench.workflow.proving_validation import Allowance
+
+    summary = validate(2, 5, allowance=Allowance(0.0, (0.0, 0.0)))
+    levels = summary["levels"]
+    assert (levels["geometry_sd_m"], levels["section_second_moment_sd"], levels["section_area_sd"]) == (0, 0, 0)
+    for result in summary["results"]:
+        d = result.record["discrepancy"]
+        assert d["geometry_sd_m"] == 0.0 and d["geometry_largest_mode_sd"] == 0.0
+        assert d["section_largest_mode_sd"] == 0.0

@@ -90,6 +90,16 @@ def _section_sd(text: str) -> tuple[float, float]:
     return sds[0], sds[1]
 
 
+def _allowance_options(p: argparse.ArgumentParser) -> None:
+    """The frame's stated tolerances a diagnosis reads its gap against (`workbench.diagnose.observations`)."""
+    p.add_argument("--geometry-sd-m", type=_length_sd, default=GEOMETRY_SD, metavar="SD",
+                   help="how well the frame's member ends are known, m, each of x and y (default "
+                        f"{GEOMETRY_SD:g}: measured with a rule; 0: the file's geometry taken as exact)")
+    p.add_argument("--section-sd", type=_section_sd, default=(SECOND_MOMENT_SD, AREA_SD), metavar="I_SD,A_SD",
+                   help="how well each member's second moment of area and area are known, relative (default "
+                        f"{SECOND_MOMENT_SD:g},{AREA_SD:g}: a machined bar; 0,0: the file's sections taken as exact)")
+
+
 def _tolerances(text: str) -> Tolerances:
     try:
         sds = [float(v) for v in text.split(",")]
@@ -267,9 +277,12 @@ def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.report.validation_page import validation_html, validation_text
     from workbench.workflow.diagnosis import validate, validation_files
     from workbench.workflow.execution import mapper
+    from workbench.workflow.proving_validation import Allowance
 
+    allowance = Allowance(args.geometry_sd_m, args.section_sd)
     with mapper(args.workers, args.scheduler, _progress()) as run:
-        files = validation_files(validate(args.cases, args.seed, mapper=run, measurement=args.measurement))
+        files = validation_files(validate(args.cases, args.seed, mapper=run, measurement=args.measurement,
+                                          allowance=allowance))
     record = json.loads(files["validation.json"])
     out.commit({**files, "index.html": validation_html(record)})
     print(validation_text(record))
@@ -364,12 +377,7 @@ def _parser() -> argparse.ArgumentParser:
                 ("diagnosis.json", "index.html", *declared_files("diagnosis")))
     p.add_argument("campaign", help="campaign directory (modes.csv, FRFs, or moments.csv)")
     p.add_argument("--count", type=_positive_int, help="use at most the first N modes")
-    p.add_argument("--geometry-sd-m", type=_length_sd, default=GEOMETRY_SD, metavar="SD",
-                   help="how well the frame's member ends are known, m, each of x and y (default "
-                        f"{GEOMETRY_SD:g}: measured with a rule; 0: the file's geometry taken as exact)")
-    p.add_argument("--section-sd", type=_section_sd, default=(SECOND_MOMENT_SD, AREA_SD), metavar="I_SD,A_SD",
-                   help="how well each member's second moment of area and area are known, relative (default "
-                        f"{SECOND_MOMENT_SD:g},{AREA_SD:g}: a machined bar; 0,0: the file's sections taken as exact)")
+    _allowance_options(p)
     _work_options(p, every_core=True)
 
     _design_options(command("design", "plan the fewest tests that identify every joint group's mean and CoV",
@@ -382,6 +390,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="drawn (default): each case measured as a lab might (accelerometer or vibrometer; accelerance, "
                         "mobility or receptance exported; 3200-6400 lines); fixed: accelerance on 0.25 Hz lines, as "
                         "the runs up to seed 18")
+    _allowance_options(p)
     _work_options(p, every_core=True)
     p.add_argument("--out", required=True, help="output directory: validation.json, cases.csv, index.html")
     p.add_argument("--force", action="store_true", help="replace the output set of an earlier run in --out")

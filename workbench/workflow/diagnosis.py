@@ -33,7 +33,7 @@ from workbench.proving.campaigns import SOURCE
 from workbench.proving.nuisances import NuisanceSettings
 from workbench.tasks import Mapper, serial_mapper
 from workbench.workflow.measured import measured_modes
-from workbench.workflow.proving_validation import ProvingResult, run_proving_case, score, validation_specs
+from workbench.workflow.proving_validation import Allowance, ProvingResult, run_proving_case, score, validation_specs
 
 __all__ = ["CampaignDiagnosis", "diagnose_campaign", "validate", "validation_files"]
 
@@ -79,9 +79,10 @@ def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callab
 
 
 def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Mapper | None = None,
-             measurement: str = "drawn") -> dict[str, Any]:
+             measurement: str = "drawn", allowance: Allowance | None = None) -> dict[str, Any]:
     """``cases`` blind proving-ground cases from ``seed`` (`workbench.workflow.proving_validation`), scored;
-    ``measurement`` as `workbench.workflow.proving_validation.validation_specs`.
+    ``measurement`` as `workbench.workflow.proving_validation.validation_specs`; each diagnosis under
+    ``allowance`` (the frame's stated tolerances; None: the defaults, as `workbench diagnose`).
 
     ``progress("validation cases", done, cases)`` is called after each case when no ``mapper``
     (`workbench.tasks.Mapper`, e.g. Dask's) runs them; a case's numbers depend only on the seed.
@@ -93,7 +94,8 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
     """
     start = time.perf_counter()
     run = mapper or serial_mapper(progress)
-    results = run(run_proving_case, validation_specs(cases, seed, measurement), "validation cases", None)
+    allowance = allowance or Allowance()
+    results = run(run_proving_case, validation_specs(cases, seed, measurement), "validation cases", allowance)
     summary = score(results)
     summary.update({"seed": seed, "generator": SOURCE, "nuisances": asdict(NuisanceSettings()),
                     "measurement": measurement,
@@ -101,8 +103,10 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
                     "levels": {"gap_level": GAP_LEVEL, "explained_level": EXPLAINED_LEVEL,
                                "min_shrinkage": MIN_SHRINKAGE, "name_confidence": NAME_CONFIDENCE,
                                "pair_evidence": PAIR_EVIDENCE, "model_floor": MODEL_FLOOR, "common_sd": COMMON_SD,
-                               "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD, "geometry_sd_m": GEOMETRY_SD,
-                               "section_second_moment_sd": SECOND_MOMENT_SD, "section_area_sd": AREA_SD,
+                               "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD,
+                               "geometry_sd_m": allowance.geometry_sd_m,
+                               "section_second_moment_sd": allowance.section_sd[0],
+                               "section_area_sd": allowance.section_sd[1],
                                "frf_level_floor": LEVEL_FLOOR, "frf_level_alpha": LEVEL_ALPHA}})
     summary["results"] = results
     return summary
