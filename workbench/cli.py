@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 import warnings
@@ -16,7 +15,9 @@ import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
-from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
+from workbench.cli_options import allowance_options as _allowance_options
+from workbench.cli_options import positive_int as _positive_int
+from workbench.cli_options import tolerances as _tolerances
 from workbench.identify.laplace import ERROR_TERMS
 from workbench.io.outputs import OutputExistsError, OutputSet, claim_output, csv_text, json_text
 from workbench.model.assembly import assemble
@@ -24,7 +25,6 @@ from workbench.model.frame_file import read_frame
 from workbench.model.matrix_file import is_matrix_model, model_files, read_matrix_model
 from workbench.model.matrix_model import MatrixModel
 from workbench.model.structure import Structure, structure_modes
-from workbench.model.tolerance import Tolerances
 from workbench.progress import Progress
 from workbench.report.tables import declared_files
 from workbench.tasks import local_cores
@@ -62,52 +62,6 @@ class ProgressBars:
 def _progress() -> Progress | None:
     """Bars when standard error is a terminal; nothing in pipes, logs and tests."""
     return ProgressBars() if sys.stderr.isatty() else None
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
-    return value
-
-
-def _length_sd(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value) or value < 0.0 or value > 0.1:
-        raise argparse.ArgumentTypeError(f"must be a standard deviation in metres, 0 to 0.1, got {text}")
-    return value
-
-
-def _section_sd(text: str) -> tuple[float, float]:
-    """``I_SD,A_SD``: relative sds of each member's second moment of area and area, each 0 to 0.5."""
-    try:
-        sds = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        sds = ()
-    if len(sds) != 2 or not all(math.isfinite(v) and 0.0 <= v <= 0.5 for v in sds):
-        raise argparse.ArgumentTypeError(f"must be two relative standard deviations I_SD,A_SD, each 0 to 0.5, "
-                                         f"got {text}")
-    return sds[0], sds[1]
-
-
-def _allowance_options(p: argparse.ArgumentParser) -> None:
-    """The frame's stated tolerances a diagnosis reads its gap against (`workbench.diagnose.observations`)."""
-    p.add_argument("--geometry-sd-m", type=_length_sd, default=GEOMETRY_SD, metavar="SD",
-                   help="how well the frame's member ends are known, m, each of x and y (default "
-                        f"{GEOMETRY_SD:g}: measured with a rule; 0: the file's geometry taken as exact)")
-    p.add_argument("--section-sd", type=_section_sd, default=(SECOND_MOMENT_SD, AREA_SD), metavar="I_SD,A_SD",
-                   help="how well each member's second moment of area and area are known, relative (default "
-                        f"{SECOND_MOMENT_SD:g},{AREA_SD:g}: a machined bar; 0,0: the file's sections taken as exact)")
-
-
-def _tolerances(text: str) -> Tolerances:
-    try:
-        sds = [float(v) for v in text.split(",")]
-        if len(sds) not in (1, 2):
-            raise ValueError("give one or two relative sds")
-        return Tolerances(sds[0], sds[-1])
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
 
 
 def _structure(path: Path) -> Structure:
