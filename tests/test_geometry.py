@@ -12,7 +12,7 @@ from test_diagnosis import ONE_BOLT, _data, _deterministic
 from workbench.cli import main
 from workbench.diagnose.baseline import Baseline
 from workbench.diagnose.geometry import geometry_columns, section_columns
-from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
+from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD, Allowance
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.assembly import assemble
 from workbench.model.frame import member_ends, member_length, moved_frame, points_on_member
@@ -122,7 +122,7 @@ def test_a_frame_whose_ends_are_known_worse_reads_its_gap_against_a_wider_allowa
     data = _data(frame, Effect("joint_stiffness_shift", "A", {"factor": 0.8}), seed=3)
     chi2 = []
     for sd in (0.0, GEOMETRY_SD, 2e-3):
-        result = diagnose(frame, data, geometry_sd_m=sd)
+        result = diagnose(frame, data, allowance=Allowance(geometry_sd_m=sd))
         record = diagnosis_record("c", result)["discrepancy"]
         assert record["geometry_sd_m"] == sd
         assert (record["geometry_largest_mode_sd"] == 0.0) == (sd == 0.0)
@@ -145,7 +145,7 @@ def test_sections_known_worse_read_the_gap_against_a_wider_allowance():
     data = _data(frame, Effect("joint_stiffness_shift", "A", {"factor": 0.8}), seed=3)
     chi2 = []
     for sd in ((0.0, 0.0), (SECOND_MOMENT_SD, AREA_SD), (3 * SECOND_MOMENT_SD, 3 * AREA_SD)):
-        result = diagnose(frame, data, section_sd=sd)
+        result = diagnose(frame, data, allowance=Allowance(section_sd=sd))
         record = diagnosis_record("c", result)["discrepancy"]
         assert (record["section_second_moment_sd"], record["section_area_sd"]) == sd
         assert (record["section_largest_mode_sd"] == 0.0) == (sd == (0.0, 0.0))
@@ -166,8 +166,6 @@ def test_a_validation_run_diagnoses_under_the_allowance_it_states():
     # `validate-diagnosis --geometry-sd-m 0 --section-sd 0,0`: every case's diagnosis takes the frame as exact,
     # and validation.json's levels say so
     from workbench.workflow.diagnosis import validate
-    from workbench.workflow.proving_validation import Allowance
-
     summary = validate(2, 5, allowance=Allowance(0.0, (0.0, 0.0)))
     levels = summary["levels"]
     assert (levels["geometry_sd_m"], levels["section_second_moment_sd"], levels["section_area_sd"]) == (0, 0, 0)

@@ -15,6 +15,7 @@ import numpy as np
 from tqdm import tqdm
 
 from workbench import __version__
+from workbench.cli_options import allowance as _allowance
 from workbench.cli_options import allowance_options as _allowance_options
 from workbench.cli_options import positive_int as _positive_int
 from workbench.cli_options import tolerances as _tolerances
@@ -217,7 +218,7 @@ def _diagnose(args: argparse.Namespace, out: OutputSet) -> str:
     # stages are shown on a terminal, as the bars are: in pipes and logs an error stays one line
     with mapper(args.workers, args.scheduler, _progress()) as tasks:  # band votes, circle fits
         done = diagnose_campaign(args.campaign, args.count, say if sys.stderr.isatty() else None, tasks,
-                                 geometry_sd_m=args.geometry_sd_m, section_sd=args.section_sd)
+                                 allowance=_allowance(args))
     record, campaign = done.record, done.campaign
     pages = diagnosis_files(record, done.diagnosis, campaign.synthetic, str(campaign.source or args.campaign))
     out.commit({"diagnosis.json": json_text(record), **pages})  # the page and its tables as CSV, all or nothing
@@ -231,12 +232,9 @@ def _validate_diagnosis(args: argparse.Namespace, out: OutputSet) -> str:
     from workbench.report.validation_page import validation_html, validation_text
     from workbench.workflow.diagnosis import validate, validation_files
     from workbench.workflow.execution import mapper
-    from workbench.workflow.proving_validation import Allowance
-
-    allowance = Allowance(args.geometry_sd_m, args.section_sd)
     with mapper(args.workers, args.scheduler, _progress()) as run:
         files = validation_files(validate(args.cases, args.seed, mapper=run, measurement=args.measurement,
-                                          allowance=allowance))
+                                          allowance=_allowance(args)))
     record = json.loads(files["validation.json"])
     out.commit({**files, "index.html": validation_html(record)})
     print(validation_text(record))

@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import math
 
-from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
+from workbench.diagnose.observations import DEFAULT_ALLOWANCE, Allowance
 from workbench.model.tolerance import Tolerances
 
-__all__ = ["positive_int", "length_sd", "section_sd", "allowance_options", "tolerances"]
+__all__ = ["positive_int", "length_sd", "section_sd", "allowance_options", "allowance", "tolerances"]
 
 
 def positive_int(text: str) -> int:
@@ -44,13 +44,22 @@ def section_sd(text: str) -> tuple[float, float]:
 
 
 def allowance_options(p: argparse.ArgumentParser) -> None:
-    """The frame's stated tolerances a diagnosis reads its gap against (`workbench.diagnose.observations`)."""
-    p.add_argument("--geometry-sd-m", type=length_sd, default=GEOMETRY_SD, metavar="SD",
+    """The frame's stated tolerances a diagnosis reads its gap against (`workbench.diagnose.observations`);
+    `allowance` makes the record of them.
+    """
+    default = DEFAULT_ALLOWANCE
+    p.add_argument("--geometry-sd-m", type=length_sd, default=default.geometry_sd_m, metavar="SD",
                    help="how well the frame's member ends are known, m, each of x and y (default "
-                        f"{GEOMETRY_SD:g}: measured with a rule; 0: the file's geometry taken as exact)")
-    p.add_argument("--section-sd", type=section_sd, default=(SECOND_MOMENT_SD, AREA_SD), metavar="I_SD,A_SD",
+                        f"{default.geometry_sd_m:g}: measured with a rule; 0: the file's geometry taken as exact)")
+    p.add_argument("--section-sd", type=section_sd, default=default.section_sd, metavar="I_SD,A_SD",
                    help="how well each member's second moment of area and area are known, relative (default "
-                        f"{SECOND_MOMENT_SD:g},{AREA_SD:g}: a machined bar; 0,0: the file's sections taken as exact)")
+                        f"{default.section_sd[0]:g},{default.section_sd[1]:g}: a machined bar; 0,0: the file's "
+                        "sections taken as exact)")
+
+
+def allowance(args: argparse.Namespace) -> Allowance:
+    """The `Allowance` of `allowance_options`' parsed values."""
+    return Allowance(args.geometry_sd_m, args.section_sd)
 
 
 def tolerances(text: str) -> Tolerances:

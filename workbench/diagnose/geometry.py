@@ -35,12 +35,13 @@ STEP_RELATIVE = 1e-4  # a section property's relative forward-difference step
 
 def geometry_columns(base: Baseline, sd_m: float = GEOMETRY_SD) -> np.ndarray | None:
     """(n_measured, 2 n_ends): each measured mode's relative frequency change per ``sd_m`` (m) of each member
-    end's x and y, by forward differences on the nominal model; None for a matrix model (no geometry).
+    end's x and y, by forward differences on the nominal model; None for a matrix model (no geometry) or with
+    ``sd_m`` 0.
 
     Each moved model's modes are paired with the baseline's paired modes by the nearest frequency in ratio
     (`_change`).
     """
-    if not isinstance(base.frame, Frame):
+    if not isinstance(base.frame, Frame) or sd_m <= 0:
         return None
     frame = base.frame
     columns = []
@@ -55,7 +56,8 @@ def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
                     area_sd: float = AREA_SD) -> np.ndarray | None:
     """(n_measured, 2 n_members): each measured mode's relative frequency change per ``second_moment_sd`` of
     each member's second moment of area, then per ``area_sd`` of each member's area (relative sds), by forward
-    differences on the nominal model (module docstring); None for a matrix model or with both sds 0.
+    differences on the nominal model (module docstring); a property whose sd is 0 has no columns (none solved);
+    None for a matrix model or with both sds 0.
 
     A member gets its own copy of its section (``<section>@<member>``), so that members sharing a section in
     the file are toleranced independently; the area's step scales the member's mass and axial stiffness alike.
@@ -65,6 +67,8 @@ def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
     frame = base.frame
     columns = []
     for key, sd in (("second_moment", second_moment_sd), ("area", area_sd)):
+        if sd <= 0:
+            continue
         for i, member in enumerate(frame.members):
             section = frame.sections[member.section]
             own = f"{member.section}@{member.name}"

@@ -67,7 +67,7 @@ import numpy as np
 from workbench.extraction.records import MeasuredModes
 
 __all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPING_MODEL_SD", "GEOMETRY_SD",
-           "SECOND_MOMENT_SD", "AREA_SD", "FORM_SD",
+           "SECOND_MOMENT_SD", "AREA_SD", "FORM_SD", "Allowance", "DEFAULT_ALLOWANCE",
            "Discrepancy",
            "Observations", "observations", "level_contrast_chi2", "frequency_chi2", "frequency_chi2_many",
            "frequency_score", "damping_chi2",
@@ -82,6 +82,19 @@ GEOMETRY_SD = 5e-4  # m, each member end's x and y (module docstring)
 SECOND_MOMENT_SD = 0.01  # relative, each member's second moment of area (module docstring)
 AREA_SD = 0.005  # relative, each member's area (module docstring)
 FORM_SD = 0.1  # relative error of a candidate's predicted change: its form is not the mechanism's
+
+
+@dataclass(frozen=True)
+class Allowance:
+    """The frame's tolerances a user states (module docstring): each member end's x and y, m (0: the file's
+    geometry exact), each member's second moment of area and area, relative ((0, 0): its sections exact).
+    """
+
+    geometry_sd_m: float = GEOMETRY_SD
+    section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)
+
+
+DEFAULT_ALLOWANCE = Allowance()  # a frame measured with a rule, its bars machined
 
 
 @dataclass(frozen=True)
@@ -134,12 +147,9 @@ class Observations:
         cov[same_cond] = self.frequency_cov[cond[:, None], mode[:, None], mode[None, :]][same_cond]
         d = self.discrepancy
         cov += d.mode_sd ** 2 * (mode[:, None] == mode[None, :]) + d.common_sd ** 2
-        if d.geometry is not None:  # one error per coordinate, shared by the conditions
-            g = d.geometry[mode]
-            cov += g @ g.T
-        if d.sections is not None:  # one error per member's property, shared by the conditions
-            g = d.sections[mode]
-            cov += g @ g.T
+        for columns in (d.geometry, d.sections):  # one error per coordinate or property, shared by the conditions
+            if columns is not None:
+                cov += columns[mode] @ columns[mode].T
         return present, cov
 
 

@@ -53,12 +53,11 @@ from workbench.diagnose.geometry import geometry_columns, section_columns
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import (
-    AREA_SD,
     DAMPING_FLOOR,
+    DEFAULT_ALLOWANCE,
     FORM_SD,
-    GEOMETRY_SD,
     RELATIVE_FLOOR,
-    SECOND_MOMENT_SD,
+    Allowance,
     Discrepancy,
     Observations,
     mode_frequency_hz,
@@ -226,8 +225,7 @@ def _two_forms(a: Frequencies, b: Frequencies, obs: Observations, baseline_hz: n
 
 def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callable[[str], None] | None = None, *,
              relative_floor: float = RELATIVE_FLOOR, damping_floor: float = DAMPING_FLOOR,
-             mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD,
-             section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)) -> Diagnosis:
+             mapper: Mapper | None = None, allowance: Allowance = DEFAULT_ALLOWANCE) -> Diagnosis:
     """Locate, name and measure the gap between ``frame`` and a campaign's modes (module docstring).
 
     Parameters
@@ -239,9 +237,8 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
         and damping ratios (`workbench.diagnose.observations`).
     mapper : solves the candidates' grids (`workbench.diagnose.curves.solve_sweeps`; default, one after the
         other); the verdict is the same on any.
-    geometry_sd_m : how well a frame's member ends are known, m, each of x and y (`GEOMETRY_SD`; 0: exact).
-    section_sd : how well each member's second moment of area and area are known, relative
-        (`SECOND_MOMENT_SD`, `AREA_SD`; (0, 0): exact).
+    allowance : how well a frame's member ends (m) and members' sections (relative) are known
+        (`workbench.diagnose.observations.Allowance`; its defaults, a frame measured with a rule).
 
     Returns
     -------
@@ -254,14 +251,12 @@ def diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, notify: Callab
     with warnings.catch_warnings(), threadpool_limits(limits=1):
         warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
         return _diagnose(frame, measured, say=notify or (lambda message: None), relative_floor=relative_floor,
-                         damping_floor=damping_floor, mapper=mapper, geometry_sd_m=geometry_sd_m,
-                         section_sd=section_sd)
+                         damping_floor=damping_floor, mapper=mapper, allowance=allowance)
 
 
 def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable[[str], None],
               relative_floor: float, damping_floor: float, mapper: Mapper | None,
-              geometry_sd_m: float = GEOMETRY_SD,
-              section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)) -> Diagnosis:
+              allowance: Allowance) -> Diagnosis:
     """`diagnose`'s work."""
     start = time.perf_counter()
     obs = observations(measured, relative_floor, damping_floor)
@@ -271,11 +266,11 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
         gone = base.unpaired[None, :]
         obs = replace(obs, frequency_hz=np.where(gone, np.nan, obs.frequency_hz),
                       damping=None if obs.damping is None else np.where(gone, np.nan, obs.damping))
-    if isinstance(frame, Frame):  # the frame's member ends known to geometry_sd_m (observations.py)
-        columns = geometry_columns(base, geometry_sd_m) if geometry_sd_m > 0 else None
-        sections = section_columns(base, *section_sd)  # and its members' sections to section_sd (observations.py)
-        obs = replace(obs, discrepancy=replace(obs.discrepancy, geometry=columns, geometry_sd_m=geometry_sd_m,
-                                               sections=sections, section_sd=section_sd))
+    if isinstance(frame, Frame):  # the frame's member ends and sections known to the allowance (observations.py)
+        obs = replace(obs, discrepancy=replace(
+            obs.discrepancy, geometry=geometry_columns(base, allowance.geometry_sd_m),
+            geometry_sd_m=allowance.geometry_sd_m, sections=section_columns(base, *allowance.section_sd),
+            section_sd=allowance.section_sd))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
@@ -323,14 +318,15 @@ def _geometry_entry(d: Discrepancy) -> dict:
     """The geometry's part of the discrepancy: each coordinate's sd (m), each member's section's relative sds,
     and the largest per-mode sd each gives.
     """
+    def largest(columns: np.ndarray | None) -> float:
+        return 0.0 if columns is None else float(np.sqrt(np.max(np.sum(columns ** 2, axis=1))))
+
     if d.geometry_sd_m is None:
         return {}
-    largest = 0.0 if d.geometry is None else float(np.sqrt(np.max(np.sum(d.geometry ** 2, axis=1))))
-    entry = {"geometry_sd_m": d.geometry_sd_m, "geometry_largest_mode_sd": largest}
+    entry = {"geometry_sd_m": d.geometry_sd_m, "geometry_largest_mode_sd": largest(d.geometry)}
     if d.section_sd is not None:
-        worst = 0.0 if d.sections is None else float(np.sqrt(np.max(np.sum(d.sections ** 2, axis=1))))
         entry |= {"section_second_moment_sd": d.section_sd[0], "section_area_sd": d.section_sd[1],
-                  "section_largest_mode_sd": worst}
+                  "section_largest_mode_sd": largest(d.sections)}
     return entry
 
 

@@ -17,13 +17,12 @@ from typing import Any
 from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL, MIN_SHRINKAGE, NAME_CONFIDENCE, PAIR_EVIDENCE
 from workbench.diagnose.frf_levels import LEVEL_ALPHA, LEVEL_FLOOR
 from workbench.diagnose.observations import (
-    AREA_SD,
     COMMON_SD,
     DAMPING_MODEL_SD,
+    DEFAULT_ALLOWANCE,
     FORM_SD,
-    GEOMETRY_SD,
     MODEL_FLOOR,
-    SECOND_MOMENT_SD,
+    Allowance,
 )
 from workbench.diagnose.verdict import Diagnosis, diagnose, diagnosis_record
 from workbench.io.campaign import Campaign, load_campaign
@@ -33,7 +32,7 @@ from workbench.proving.campaigns import SOURCE
 from workbench.proving.nuisances import NuisanceSettings
 from workbench.tasks import Mapper, serial_mapper
 from workbench.workflow.measured import measured_modes
-from workbench.workflow.proving_validation import Allowance, ProvingResult, run_proving_case, score, validation_specs
+from workbench.workflow.proving_validation import ProvingResult, run_proving_case, score, validation_specs
 
 __all__ = ["CampaignDiagnosis", "diagnose_campaign", "validate", "validation_files"]
 
@@ -52,8 +51,7 @@ class CampaignDiagnosis:
 
 
 def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callable[[str], None] | None = None,
-                      mapper: Mapper | None = None, geometry_sd_m: float = GEOMETRY_SD,
-                      section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)) -> CampaignDiagnosis:
+                      mapper: Mapper | None = None, allowance: Allowance = DEFAULT_ALLOWANCE) -> CampaignDiagnosis:
     """Read a campaign, diagnose its gap (`workbench.diagnose.verdict.diagnose`), make its record.
 
     Parameters
@@ -63,26 +61,23 @@ def diagnose_campaign(path: str | Path, count: int | None = None, notify: Callab
     notify : called with a short message before each stage.
     mapper : runs the bands' votes, the tests' circle fits and the candidates' grids (`workbench.tasks.Mapper`);
         default, one after the other.
-    geometry_sd_m : how well the frame's member ends are known, m (`workbench.diagnose.observations.GEOMETRY_SD`).
-    section_sd : how well each member's second moment of area and area are known, relative
-        (`workbench.diagnose.observations.SECOND_MOMENT_SD`, `AREA_SD`).
+    allowance : how well the frame's member ends and sections are known (`workbench.diagnose.observations.Allowance`).
     """
     campaign = load_campaign(path)
     if notify:
         notify("modes of every test (modes.csv or circle fit)")
     measured = measured_modes(campaign, count, "diagnose", mapper)
-    result = diagnose(campaign.frame, measured, notify, mapper=mapper, geometry_sd_m=geometry_sd_m,
-                      section_sd=section_sd)
+    result = diagnose(campaign.frame, measured, notify, mapper=mapper, allowance=allowance)
     record = diagnosis_record(campaign.name, result)
     record["synthetic"] = bool(campaign.synthetic)
     return CampaignDiagnosis(campaign, result, record)
 
 
 def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Mapper | None = None,
-             measurement: str = "drawn", allowance: Allowance | None = None) -> dict[str, Any]:
+             measurement: str = "drawn", allowance: Allowance = DEFAULT_ALLOWANCE) -> dict[str, Any]:
     """``cases`` blind proving-ground cases from ``seed`` (`workbench.workflow.proving_validation`), scored;
     ``measurement`` as `workbench.workflow.proving_validation.validation_specs`; each diagnosis under
-    ``allowance`` (the frame's stated tolerances; None: the defaults, as `workbench diagnose`).
+    ``allowance`` (the frame's stated tolerances; the defaults, as `workbench diagnose`).
 
     ``progress("validation cases", done, cases)`` is called after each case when no ``mapper``
     (`workbench.tasks.Mapper`, e.g. Dask's) runs them; a case's numbers depend only on the seed.
@@ -94,7 +89,6 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
     """
     start = time.perf_counter()
     run = mapper or serial_mapper(progress)
-    allowance = allowance or Allowance()
     results = run(run_proving_case, validation_specs(cases, seed, measurement), "validation cases", allowance)
     summary = score(results)
     summary.update({"seed": seed, "generator": SOURCE, "nuisances": asdict(NuisanceSettings()),

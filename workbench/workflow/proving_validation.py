@@ -40,7 +40,7 @@ import numpy as np
 from scipy.stats import binomtest
 
 from workbench.diagnose.candidates import members_at
-from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
+from workbench.diagnose.observations import DEFAULT_ALLOWANCE, Allowance
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.frame import Frame
 from workbench.proving.cases import (
@@ -58,7 +58,7 @@ from workbench.proving.mechanisms import NONE, OUTSIDE
 from workbench.rig.effects import ADDED_MASS, UNEXPLAINED
 from workbench.workflow.measured import measured_modes
 
-__all__ = ["Allowance", "ProvingResult", "validation_specs", "run_proving_case", "quantity_label",
+__all__ = ["ProvingResult", "validation_specs", "run_proving_case", "quantity_label",
            "measurement_label", "wilson", "score"]
 
 
@@ -126,26 +126,16 @@ def _same_place(frame: Frame, effect: str, truth: str | None, where: str | None)
     return where == truth
 
 
-@dataclass(frozen=True)
-class Allowance:
-    """The tolerances a validation run's diagnoses state (`workbench.diagnose.verdict.diagnose`): member ends (m)
-    and each member's second moment of area and area (relative sds).
-    """
-
-    geometry_sd_m: float = GEOMETRY_SD
-    section_sd: tuple[float, float] = (SECOND_MOMENT_SD, AREA_SD)
-
-
 def run_proving_case(allowance: Allowance | None, spec: CaseSpec) -> ProvingResult:
     """Simulate a case, diagnose its campaign blind under ``allowance`` (None: the defaults), score it against the
     truth (a `workbench.tasks.Mapper` task, ``allowance`` its shared argument).
     """
-    allowance = allowance or Allowance()
+    allowance = allowance or DEFAULT_ALLOWANCE
     campaign, truth = case_campaign(spec)
     assert isinstance(campaign.frame, Frame)  # the proving ground writes frame files
     start = time.perf_counter()
     result = diagnose(campaign.frame, measured_modes(campaign, None, "diagnose"),  # the truth is not passed
-                      geometry_sd_m=allowance.geometry_sd_m, section_sd=allowance.section_sd)
+                      allowance=allowance)
     wall = time.perf_counter() - start
     category = _category(spec)
     allowed = {spec.kind} | ({spec.secondary} if spec.secondary else set())
