@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
+from workbench.diagnose.observations import DEFAULT_ALLOWANCE
 from workbench.proving.mechanisms import NONE
 from workbench.workflow.execution import mapper
 from workbench.workflow.proving_validation import ProvingResult, run_proving_case, validation_specs
@@ -60,7 +61,7 @@ def main() -> None:
     pooled: Counter = Counter()
     with mapper(args.workers) as run:
         for seed in args.seeds:
-            counts = tally(run(run_proving_case, validation_specs(args.cases, seed, "fixed"), "cases", None))
+            counts = tally(run(run_proving_case, validation_specs(args.cases, seed, "fixed"), "cases", DEFAULT_ALLOWANCE))
             pooled += counts
             print(f"seed {seed}: {dict(counts)}", flush=True)
     print(f"pooled over seeds {args.seeds}: level tests {pooled['tested']}; taken away: "

@@ -101,19 +101,18 @@ DEFAULT_ALLOWANCE = Allowance()  # a frame measured with a rule, its bars machin
 class Discrepancy:
     """The model-form error a gap is judged against (module docstring); every value relative.
 
-    ``geometry`` (n_modes, k): each measured mode's relative frequency change per ``geometry_sd_m`` (by default
-    `GEOMETRY_SD`) of each of the frame's ``k`` member-end coordinates (`workbench.diagnose.geometry`); None
-    without a frame geometry or with ``geometry_sd_m`` 0. ``sections`` (n_modes, 2 n_members) likewise per
-    ``section_sd`` (second moment's, area's relative sds; `workbench.diagnose.geometry.section_columns`).
+    ``geometry`` (n_modes, k): each measured mode's relative frequency change per ``allowance.geometry_sd_m``
+    of each of the frame's ``k`` member-end coordinates (`workbench.diagnose.geometry`); None without a frame
+    geometry or with that sd 0. ``sections`` (n_modes, 2 n_members) likewise per ``allowance.section_sd``
+    (second moment's, area's relative sds; `workbench.diagnose.geometry.section_columns`).
     """
 
     mode_sd: float = MODEL_FLOOR
     common_sd: float = COMMON_SD
     damping_sd: float = DAMPING_MODEL_SD
     geometry: np.ndarray | None = field(default=None, compare=False)
-    geometry_sd_m: float | None = None  # the sd ``geometry`` is per, m (0: the file's geometry exact; None: none)
     sections: np.ndarray | None = field(default=None, compare=False)
-    section_sd: tuple[float, float] | None = None  # the (second moment, area) relative sds ``sections`` is per
+    allowance: Allowance | None = None  # the sds ``geometry`` and ``sections`` are per (None: no frame geometry)
 
 
 @dataclass(frozen=True)
@@ -149,7 +148,8 @@ class Observations:
         cov += d.mode_sd ** 2 * (mode[:, None] == mode[None, :]) + d.common_sd ** 2
         for columns in (d.geometry, d.sections):  # one error per coordinate or property, shared by the conditions
             if columns is not None:
-                cov += columns[mode] @ columns[mode].T
+                g = columns[mode]
+                cov += g @ g.T
         return present, cov
 
 

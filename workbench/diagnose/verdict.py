@@ -269,8 +269,7 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     if isinstance(frame, Frame):  # the frame's member ends and sections known to the allowance (observations.py)
         obs = replace(obs, discrepancy=replace(
             obs.discrepancy, geometry=geometry_columns(base, allowance.geometry_sd_m),
-            geometry_sd_m=allowance.geometry_sd_m, sections=section_columns(base, *allowance.section_sd),
-            section_sd=allowance.section_sd))
+            sections=section_columns(base, *allowance.section_sd), allowance=allowance))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
@@ -321,13 +320,12 @@ def _geometry_entry(d: Discrepancy) -> dict:
     def largest(columns: np.ndarray | None) -> float:
         return 0.0 if columns is None else float(np.sqrt(np.max(np.sum(columns ** 2, axis=1))))
 
-    if d.geometry_sd_m is None:
+    a = d.allowance
+    if a is None:
         return {}
-    entry = {"geometry_sd_m": d.geometry_sd_m, "geometry_largest_mode_sd": largest(d.geometry)}
-    if d.section_sd is not None:
-        entry |= {"section_second_moment_sd": d.section_sd[0], "section_area_sd": d.section_sd[1],
-                  "section_largest_mode_sd": largest(d.sections)}
-    return entry
+    return {"geometry_sd_m": a.geometry_sd_m, "geometry_largest_mode_sd": largest(d.geometry),
+            "section_second_moment_sd": a.section_sd[0], "section_area_sd": a.section_sd[1],
+            "section_largest_mode_sd": largest(d.sections)}
 
 
 def _ranking_entry(c: CandidateFit) -> dict:

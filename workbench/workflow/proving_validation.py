@@ -40,7 +40,7 @@ import numpy as np
 from scipy.stats import binomtest
 
 from workbench.diagnose.candidates import members_at
-from workbench.diagnose.observations import DEFAULT_ALLOWANCE, Allowance
+from workbench.diagnose.observations import Allowance
 from workbench.diagnose.verdict import diagnose, diagnosis_record
 from workbench.model.frame import Frame
 from workbench.proving.cases import (
@@ -126,11 +126,10 @@ def _same_place(frame: Frame, effect: str, truth: str | None, where: str | None)
     return where == truth
 
 
-def run_proving_case(allowance: Allowance | None, spec: CaseSpec) -> ProvingResult:
-    """Simulate a case, diagnose its campaign blind under ``allowance`` (None: the defaults), score it against the
-    truth (a `workbench.tasks.Mapper` task, ``allowance`` its shared argument).
+def run_proving_case(allowance: Allowance, spec: CaseSpec) -> ProvingResult:
+    """Simulate a case, diagnose its campaign blind under ``allowance`` (the frame's stated tolerances), score it
+    against the truth (a `workbench.tasks.Mapper` task, ``allowance`` its shared argument).
     """
-    allowance = allowance or DEFAULT_ALLOWANCE
     campaign, truth = case_campaign(spec)
     assert isinstance(campaign.frame, Frame)  # the proving ground writes frame files
     start = time.perf_counter()
