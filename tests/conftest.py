@@ -15,12 +15,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 from workbench.model.frame import Frame
 from workbench.model.frame_file import parse_frame
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # `-n auto` runs a worker per core: a BLAS pool per worker as well oversubscribes the cores (the default suite
+    # took 251 s so and 214 s with one BLAS thread per worker on 2 cores, 2026-12-03); the processes a test starts
+    # (the command line, Dask's workers) inherit the environment
+    threadpool_limits(1)
+    for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")
 
 ALUMINIUM = {"youngs_modulus": 70e9, "density": 2700.0, "poisson_ratio": 0.33}
 
