@@ -117,6 +117,17 @@ def test_global_joint_shift_scales_every_joint():
                                                       0.5 * frame.joints[1].youngs_modulus]
 
 
+def test_a_global_joint_level_effect_leaves_the_frame_and_a_named_joint_must_exist():
+    # a softening of every joint at once (where None) is a candidate the FRF-level test applies to the frame: a
+    # development run named it and the applier asked the frame for a joint named None
+    frame = read_frame(TWO_BOLT)
+    for effect in ("amplitude_softening", "joint_damping"):
+        assert apply_effect(frame, Effect(effect, None, {})) is frame
+        assert apply_effect(frame, Effect(effect, "B", {})) is frame
+        with pytest.raises(KeyError, match="no joint named 'Z'"):
+            apply_effect(frame, Effect(effect, "Z", {}))
+
+
 # each case takes 20-30 s: one stays in the default suite, the others run in CI's slow step
 SLOW = pytest.mark.slow
 CASES = [

@@ -243,9 +243,10 @@ def _joint_stiffness_shift(frame: Frame, w: str | None, p: dict[str, Any]) -> Fr
                                        if w is None or x.name == w else x for x in frame.joints))
 
 
-def _joint_level(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
-    frame.joint(w)  # the joint must exist; its physics is the user's to change
-    return frame
+def _joint_level(frame: Frame, w: str | None, p: dict[str, Any]) -> Frame:
+    if w is not None:  # None: every joint at once (a global softening); else the joint must exist
+        frame.joint(w)
+    return frame  # a joint-level effect's physics is the user's to change, not the frame's
 
 
 def _outside_vocabulary(frame: Frame, w: str, p: dict[str, Any]) -> Frame:
