@@ -33,6 +33,16 @@ seed's run, never tuned on one):
    holds the as-built common shift that the chi-square marginalises (`Observations.joint_covariance`) and no
    candidate removes, and a strut's force fitted within its chi-square shrank it by 7 % only (proving-ground
    development seed 9001, case 17: 43 of 72 single effects named with 10 %, 45 with 0, no other verdict changed).
+   Since seed 26 a frequency candidate must lower the channel's chi-square instead (its held-out chi-square
+   below the nominal model's, `_shrinks`), the measure the gap is read in: fitted under the chi-square, a
+   candidate removes the effect's pattern and may leave more of the as-built common shift in the raw residual,
+   whose RMS then grows as the gap closes (spent seed 25: a softer joint, a support, a stinger and a softening
+   ranked first, their held-out chi-squares a sixth to nine tenths below the nominal model's, all
+   ``unexplained`` for a raw RMS that grew). Their error beyond the as-built allowance (the residual less its
+   conditional-mean common shift, geometry and sections) was tried on the development data and dropped: on a
+   large effect that conditional mean takes in most of the nominal model's residual (spent seed 24, case 61:
+   1.9 % raw, 0.1 % net), so that the right candidate seemed to widen it. A damping candidate still shrinks the
+   damping RMS error. The reported ``shrinkage`` is the contract's, of the raw RMS, and may be negative.
    The quantile is the 90 % one (it was 99 %). The discrepancy is set wide enough that a model as good as a
    nominal model of a real structure can be is not said to miss, so the effect that is there predicts the
    held-out modes well inside it (every right frequency verdict of seed 9001 had a held-out p-value above
@@ -65,7 +75,7 @@ seed's run, never tuned on one):
    mimics, a mass that a softer support mimics): the verdict is then ``unexplained`` with that effect as the
    partial explanation and the level test beside it (``partial.frf_levels``).
 6. **Otherwise** ``unexplained``, with the best partial explanation (``partial``: the best candidate on a
-   channel with a gap, when it shrinks the held-out error at all). ``none`` only when no channel has a gap.
+   channel with a gap, when it narrows that gap, `_shrinks`). ``none`` only when no channel has a gap.
 """
 
 from __future__ import annotations
@@ -91,7 +101,7 @@ __all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "
 
 GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
 EXPLAINED_LEVEL = 0.1  # a candidate's held-out chi-square within its 90 % quantile: explained (module docstring)
-MIN_SHRINKAGE = 0.0  # and its held-out RMS error shrinks by more than this (at all: the chi-square decides)
+MIN_SHRINKAGE = 0.0  # a damping candidate's held-out RMS error shrinks by more than this (at all)
 NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
 PAIR_EVIDENCE = 6.0  # each effect of a pair lowers the in-sample chi-square by this ("strong" on the BIC scale)
 UNION_BOUND = (ADDED_MASS.name, AMPLITUDE_SOFTENING.name)  # candidates the null draws do not stand for (family.py)
@@ -272,14 +282,25 @@ def type_confidence(candidates: list[CandidateFit], baseline: CandidateFit, effe
     return float(np.sum(w[:-1][[c.effect == effect and (c.at_bound or not at_bound_only) for c in candidates]]))
 
 
-def _explained(heldout_chi2: float, shrinkage: float, gap: dict) -> bool:
-    """The explained test (module docstring, 2) of a held-out chi-square and shrinkage on a channel's ``gap``."""
+def _explained(heldout_chi2: float, shrinks: bool, gap: dict) -> bool:
+    """The explained test (module docstring, 2) of a held-out chi-square on a channel's ``gap``, for a candidate
+    that ``shrinks`` the gap (`_shrinks`).
+    """
     limit = chi2_law.ppf(1.0 - EXPLAINED_LEVEL, gap["observations"])
-    return bool(heldout_chi2 <= limit and shrinkage > MIN_SHRINKAGE)
+    return bool(heldout_chi2 <= limit and shrinks)
+
+
+def _shrinks(fit: CandidateFit, baseline: CandidateFit) -> bool:
+    """Whether a candidate narrows its channel's gap (module docstring, 2): a frequency one lowers the held-out
+    chi-square below the nominal model's, a damping one shrinks the held-out damping RMS by `MIN_SHRINKAGE`.
+    """
+    if fit.channel == "damping":
+        return _shrinkage(fit, baseline) > MIN_SHRINKAGE
+    return fit.heldout_chi2_frequency < baseline.heldout_chi2_frequency
 
 
 def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
-    return _explained(_heldout(fit), _shrinkage(fit, baseline), gap)
+    return _explained(_heldout(fit), _shrinks(fit, baseline), gap)
 
 
 def _entry(fit: CandidateFit, baseline: CandidateFit, parameters: dict | None = None) -> dict:
@@ -296,8 +317,8 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
     pairs = [p for p in pairs if _allowed(p.first.effect, gap) and _allowed(p.second.effect, gap)]
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
-        if (_explained(pair.heldout_chi2_frequency, _pair_shrinkage(pair, baseline), gap) and evidence >= PAIR_EVIDENCE
-                and not pair.at_bound):
+        shrinks = pair.heldout_chi2_frequency < baseline.heldout_chi2_frequency  # as a single's (`_shrinks`)
+        if _explained(pair.heldout_chi2_frequency, shrinks, gap) and evidence >= PAIR_EVIDENCE and not pair.at_bound:
             w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
                          + [baseline.heldout_chi2_frequency])
             return pair, float(w[pairs.index(pair)])
@@ -408,9 +429,9 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
     partial = None
     confidence = 1.0
     if top is not None:
-        shrink = _shrinkage(top, baseline)
-        if shrink > 0.0:
-            partial = {"effect": top.effect, "where": top.where, "shrinkage": float(shrink), "at_bound": top.at_bound}
+        if _shrinks(top, baseline):
+            partial = {"effect": top.effect, "where": top.where, "shrinkage": float(_shrinkage(top, baseline)),
+                       "at_bound": top.at_bound}
         g = gaps[top.channel]
         confidence = float(chi2_law.cdf(_heldout(top), g["observations"]))
         if _explains(top, baseline, g):
