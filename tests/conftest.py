@@ -25,7 +25,7 @@ SHARED = REPO.parent / "shared"
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # `-n auto` runs a worker per core: a BLAS pool per worker as well oversubscribes the cores (the default suite
-    # took 251 s so and 214 s with one BLAS thread per worker on 2 cores, 2026-12-03); the processes a test starts
+    # took 251 s so and 200 s with one BLAS thread per worker on 2 cores, 2026-12-03); the processes a test starts
     # (the command line, Dask's workers) inherit the environment
     threadpool_limits(1)
     for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):

@@ -296,7 +296,12 @@ def _shrinks(fit: CandidateFit, baseline: CandidateFit) -> bool:
     """
     if fit.channel == "damping":
         return _shrinkage(fit, baseline) > MIN_SHRINKAGE
-    return fit.heldout_chi2_frequency < baseline.heldout_chi2_frequency
+    return _lowers_chi2(fit.heldout_chi2_frequency, baseline)
+
+
+def _lowers_chi2(heldout_chi2_frequency: float, baseline: CandidateFit) -> bool:
+    """A frequency candidate's, or a pair's, narrowing of the gap (`_shrinks`)."""
+    return heldout_chi2_frequency < baseline.heldout_chi2_frequency
 
 
 def _explains(fit: CandidateFit, baseline: CandidateFit, gap: dict) -> bool:
@@ -317,7 +322,7 @@ def _pair_verdict(pairs: list[PairFit], singles: list[CandidateFit], baseline: C
     pairs = [p for p in pairs if _allowed(p.first.effect, gap) and _allowed(p.second.effect, gap)]
     for pair in pairs:
         evidence = min(pair.first.chi2_frequency, pair.second.chi2_frequency) - pair.chi2_frequency
-        shrinks = pair.heldout_chi2_frequency < baseline.heldout_chi2_frequency  # as a single's (`_shrinks`)
+        shrinks = _lowers_chi2(pair.heldout_chi2_frequency, baseline)
         if _explained(pair.heldout_chi2_frequency, shrinks, gap) and evidence >= PAIR_EVIDENCE and not pair.at_bound:
             w = _weights([p.heldout_score for p in pairs] + [_score(c) for c in singles]
                          + [baseline.heldout_chi2_frequency])
