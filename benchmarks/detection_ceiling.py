@@ -9,8 +9,8 @@ nuisance-free article with the effect against the one without, at the intensity 
 (`workbench.proving.cases`), paired as the footprint pairs them (`workbench.proving.footprint`).
 
 **Ceiling.** A test that knew that shift's exact shape in advance (no search over candidates, no measurement
-error, no joint scatter) and tested along it one-sided at the frequency channel's level ``a`` (``GAP_LEVELS``:
-5 %; 1 % up to seed 26) sees it with probability ``1 - Phi(z_(1-a) - sqrt(lambda))``, ``lambda = delta^T C^-1 delta`` (Neyman-Pearson: no test
+error, no joint scatter) and tested along it one-sided at the diagnosis's level (``GAP_LEVEL`` = 1 %) sees it
+with probability ``1 - Phi(z_0.99 - sqrt(lambda))``, ``lambda = delta^T C^-1 delta`` (Neyman-Pearson: no test
 at that level does better). Four model-form covariances ``C``:
 
 - **before 24**: the diagnosis's discrepancy up to seed 23 at its least (`workbench.diagnose.observations`:
@@ -52,7 +52,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_law
 from scipy.stats import norm
 
-from workbench.diagnose.decision import GAP_LEVELS
+from workbench.diagnose.decision import GAP_LEVEL
 from workbench.diagnose.observations import (
     AREA_SD,
     COMMON_SD,
@@ -73,7 +73,6 @@ from workbench.proving.nuisances import built_frame
 from workbench.workflow.proving_validation import validation_specs
 
 REPO = Path(__file__).resolve().parents[1]
-GAP_LEVEL = GAP_LEVELS["frequency"]  # the channel these ceilings read
 Z = float(norm.ppf(1.0 - GAP_LEVEL))
 
 

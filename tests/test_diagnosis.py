@@ -809,15 +809,14 @@ def _directions_and_fits(obs, f, residual, directions):
 
 def test_the_targeted_gap_test_keeps_its_level_and_sees_what_the_omnibus_test_misses():
     # 15 candidate directions: under the discrepancy alone the targeted test (Bonferroni over the candidates)
-    # flags at most its level of the campaigns; with a 3.5-sigma change along one of them it flags it as often
+    # flags at most GAP_LEVEL of the campaigns; with a 3.5-sigma change along one of them it flags it as often
     # as its closed form (non-central chi-square, one dof) says, far more often than the omnibus test does
     from scipy.stats import chi2 as chi2_law
     from scipy.stats import ncx2
 
-    from workbench.diagnose.decision import GAP_LEVELS, channel_gaps
+    from workbench.diagnose.decision import GAP_LEVEL, channel_gaps
     from workbench.diagnose.observations import Discrepancy, Observations
 
-    level = GAP_LEVELS["frequency"]
     rng = np.random.default_rng(11)
     n_cond, n_modes, se, k = 2, 8, 5e-4, 15
     d = Discrepancy(0.002, 0.0, 0.2)
@@ -835,13 +834,13 @@ def test_the_targeted_gap_test_keeps_its_level_and_sees_what_the_omnibus_test_mi
         for case, residual in (("null", noise), ("effect", noise - size * directions[0])):
             measured, baseline, fits = _directions_and_fits(obs, f, residual, directions)
             gap = channel_gaps(measured, f, baseline, fits)["frequency"]
-            flagged[case][0] += gap["evidence"]["p_value"] < level
+            flagged[case][0] += gap["evidence"]["p_value"] < GAP_LEVEL
             flagged[case][1] += gap["omnibus"]
     n = n_cond * n_modes
-    assert flagged["null"][0] / draws <= level + 3 * np.sqrt(level / draws)
-    expected = ncx2.sf(chi2_law.isf(level / k, 1), 1, 3.5 ** 2)
+    assert flagged["null"][0] / draws <= GAP_LEVEL + 3 * np.sqrt(GAP_LEVEL / draws)
+    expected = ncx2.sf(chi2_law.isf(GAP_LEVEL / k, 1), 1, 3.5 ** 2)
     assert flagged["effect"][0] / draws == pytest.approx(expected, abs=0.06)
-    assert flagged["effect"][1] / draws == pytest.approx(ncx2.sf(chi2_law.isf(level, n), n, 3.5 ** 2), abs=0.06)
+    assert flagged["effect"][1] / draws == pytest.approx(ncx2.sf(chi2_law.isf(GAP_LEVEL, n), n, 3.5 ** 2), abs=0.06)
     assert flagged["effect"][0] > flagged["effect"][1] + 0.1 * draws
 
 

@@ -6,11 +6,11 @@ a real structure can be is not said to miss. The levels are frozen constants (se
 development data, the mix of seed 9001 and validation seeds once spent, and fixed before each validation
 seed's run, never tuned on one):
 
-1. **A gap, channel by channel.** Frequencies have a gap when the baseline's chi-square exceeds its ``1 - level``
-   quantile, the channel's level in `GAP_LEVELS` (the omnibus test: chi-square law, one degree of freedom per mean),
-   or when one candidate of the channel lowers it beyond chance (the targeted test, `_evidence`: the drop read as
-   chi-square with the candidate's parameter count, and the least p-value of the channel's candidates read against
-   its own law under no effect, `workbench.diagnose.family`, below that level, added masses and
+1. **A gap, channel by channel.** Frequencies have a gap when the baseline's chi-square exceeds its
+   ``1 - GAP_LEVEL`` quantile (the omnibus test: chi-square law, one degree of freedom per mean), or when
+   one candidate of the channel lowers it beyond chance (the targeted test, `_evidence`: the drop read as
+   chi-square with the candidate's parameter count, and the least p-value of the channel's candidates read
+   against its own law under no effect, `workbench.diagnose.family`, below ``GAP_LEVEL``, added masses and
    softenings by Bonferroni's term; until seed 13 every candidate's p-value was multiplied by their number,
    Bonferroni); damping likewise (its candidates' least p-value against its exact law under no effect,
    `workbench.diagnose.family.damping_null`; by Bonferroni until seed 22), its means read under one model
@@ -24,19 +24,9 @@ seed's run, never tuned on one):
    the levels' residuals (`workbench.diagnose.observations.level_contrast_chi2`), whose covariance the
    campaign estimates from a handful of tests and which is read against F with their degrees of freedom
    (``levels``), and the rest, read against chi-square with the line's degrees of freedom removed; the
-   omnibus test rejects when either does (each at the channel's level). The softening candidates' drops are read
+   omnibus test rejects when either does (each at ``GAP_LEVEL``). The softening candidates' drops are read
    against F too, and amplitude softening is named only where the levels differ (the line's F test or a
-   softening drop, made family-wise over all the channel's candidates as above, below the level).
-   **The levels**: 5 % for the frequencies, 1 % for the damping (1 % for both until seed 26). The frequency
-   channel's null has slack that the damping's has not: on the development no-effect campaigns (the 19 of
-   spent seed 26 and the 114 of dev seeds 9002-9007, 133 in all, every nuisance on) the frequency tests' least
-   p-value fell below 5 % in none and below 10 % in one (the discrepancy is stated from the frame's
-   tolerances, wider than an as-built frame of the proving ground strays), the damping tests' below 5 % in one,
-   below 10 % in seven and below 20 % in 21 (near its nominal rate). At 1 % the frequency channel missed gaps
-   whose right candidate it ranked first: the same seed re-run at 5 % for both channels named 9 more of its 143
-   single effects right (7 of them through the frequencies), with 4 more wrong names (2 through the damping, a
-   mass read as a dashpot and a dashpot added to a stinger), and no false alarm. Raising the damping level
-   buys as many wrong names as right ones; raising the frequencies' spends a slack the no-effect data show.
+   softening drop, made family-wise over all the channel's candidates as above, below ``GAP_LEVEL``).
 2. **Explained.** The best candidate on that channel (least held-out score, leave one mode out)
    explains the gap when its held-out chi-square is within the ``1 - EXPLAINED_LEVEL`` quantile and it shrinks
    the held-out RMS error at all (`MIN_SHRINKAGE` = 0). It used to have to shrink it by 10 %; but the RMS error
@@ -106,11 +96,10 @@ from workbench.diagnose.frf_levels import LevelTest
 from workbench.diagnose.observations import Observations, damping_levels_chi2, frequency_chi2, level_contrast_chi2
 from workbench.rig.effects import ADDED_MASS, AMPLITUDE_SOFTENING, NONE, UNEXPLAINED
 
-__all__ = ["GAP_LEVELS", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
+__all__ = ["GAP_LEVEL", "EXPLAINED_LEVEL", "MIN_SHRINKAGE", "NAME_CONFIDENCE", "PAIR_EVIDENCE", "Verdict",
            "channel_gaps", "decide", "frequency_null", "damping_family", "type_confidence"]
 
-# a channel's tests reject at its level: a gap (module docstring, 1; frequencies at 1 % until seed 27)
-GAP_LEVELS = {"frequency": 0.05, "damping": 0.01}
+GAP_LEVEL = 0.01  # a channel's baseline chi-square beyond its 99 % quantile: a gap
 EXPLAINED_LEVEL = 0.1  # a candidate's held-out chi-square within its 90 % quantile: explained (module docstring)
 MIN_SHRINKAGE = 0.0  # a damping candidate's held-out RMS error shrinks by more than this (at all)
 NAME_CONFIDENCE = 0.5  # an effect is named when it is more likely than every other together
@@ -142,7 +131,7 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     levels, ``levels``: the line's chi-square, its degrees of freedom, the scatter's, its F p-value, the best
     softening drop's p-value and whether the levels differ (``gap``); for damping at several levels likewise its
     ``levels`` (the line in amplitude, F with the scatter's degrees of freedom; no candidate explains it, but a
-    gap it makes is a gap); ``gap`` when a test rejects at the channel's level (`GAP_LEVELS`).
+    gap it makes is a gap); ``gap`` when a test rejects at `GAP_LEVEL`.
     ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni;
     ``damping`` likewise for the damping candidates (`damping_family`).
     """
@@ -159,8 +148,7 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
                              ("damping", chi2_d - contrast_d, n_d - q_d - fitted_d)):
         if dof < 1:
             continue
-        level = GAP_LEVELS[name]
-        threshold = float(chi2_law.ppf(1.0 - level, dof))
+        threshold = float(chi2_law.ppf(1.0 - GAP_LEVEL, dof))
         whole = chi2_f if name == "frequency" else chi2_d  # the candidates' chi-squares hold the levels' part
         channel = [c for c in ranking or [] if c.channel == name]
         family = null if name == "frequency" else damping
@@ -174,15 +162,15 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
                                   obs.scatter_dof, family=len(channel), null=family)
             out[name]["levels"] = {"chi2": float(contrast), "dof": q, "scatter_dof": obs.scatter_dof,
                                    "p_value": p_levels, "softening_p_value": softening["p_value"],
-                                   "gap": bool(min(p_levels, softening["p_value"]) < level)}
-            omnibus = omnibus or p_levels < level
+                                   "gap": bool(min(p_levels, softening["p_value"]) < GAP_LEVEL)}
+            omnibus = omnibus or p_levels < GAP_LEVEL
         if name == "damping" and q_d:  # a damping that moves with the level: no candidate of the vocabulary's
             p_levels = float(f_law.sf(contrast_d / q_d, q_d, obs.scatter_dof))
             out[name]["levels"] = {"chi2": float(contrast_d), "dof": q_d, "scatter_dof": obs.scatter_dof,
-                                   "p_value": p_levels, "gap": bool(p_levels < level)}
-            omnibus = omnibus or p_levels < level
+                                   "p_value": p_levels, "gap": bool(p_levels < GAP_LEVEL)}
+            omnibus = omnibus or p_levels < GAP_LEVEL
         out[name]["omnibus"] = bool(omnibus)
-        out[name]["gap"] = bool(omnibus or evidence["p_value"] < level)
+        out[name]["gap"] = bool(omnibus or evidence["p_value"] < GAP_LEVEL)
     return out
 
 

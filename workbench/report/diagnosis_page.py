@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVELS
+from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL
 from workbench.diagnose.verdict import Diagnosis
 from workbench.report.page import CSS
 from workbench.report.pieces import html_figure
@@ -306,9 +306,8 @@ of the vocabulary (CONTRACTS.md section 3) with one parameter (a mass on a membe
 support giving way in two dofs, two stiffnesses),
 fitted on exact eigen-solutions. Every test measures residuals against the measurement error plus the
 model-form error a nominal model of a real structure carries ({_discrepancy_text(record)}). Verdict rules,
-channel by channel (frequency, damping): <code>none</code> when no channel's tests reject, at
-{100 * GAP_LEVELS['frequency']:g} % for the frequencies and {100 * GAP_LEVELS['damping']:g} % for the damping;
-otherwise the best candidate on a channel with a gap, if its held-out
+channel by channel (frequency, damping): <code>none</code> when no channel's chi-square exceeds its
+{100 * (1 - GAP_LEVEL):g} % quantile; otherwise the best candidate on a channel with a gap, if its held-out
 chi-square is within its {100 * (1 - EXPLAINED_LEVEL):g} % quantile, it shrinks the held-out RMS error at all,
 its parameter is not at a bound of its range and its effect carries more than half the weight of
 all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the gap (neither at

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVELS, MIN_SHRINKAGE, NAME_CONFIDENCE, PAIR_EVIDENCE
+from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL, MIN_SHRINKAGE, NAME_CONFIDENCE, PAIR_EVIDENCE
 from workbench.diagnose.frf_levels import LEVEL_ALPHA, LEVEL_FLOOR
 from workbench.diagnose.observations import (
     COMMON_SD,
@@ -94,7 +94,7 @@ def validate(cases: int, seed: int, progress: Progress | None = None, mapper: Ma
     summary.update({"seed": seed, "generator": SOURCE, "nuisances": asdict(NuisanceSettings()),
                     "measurement": measurement,
                     "wall_time_s": time.perf_counter() - start,
-                    "levels": {"gap_levels": GAP_LEVELS, "explained_level": EXPLAINED_LEVEL,
+                    "levels": {"gap_level": GAP_LEVEL, "explained_level": EXPLAINED_LEVEL,
                                "min_shrinkage": MIN_SHRINKAGE, "name_confidence": NAME_CONFIDENCE,
                                "pair_evidence": PAIR_EVIDENCE, "model_floor": MODEL_FLOOR, "common_sd": COMMON_SD,
                                "damping_model_sd": DAMPING_MODEL_SD, "form_sd": FORM_SD,
