@@ -807,6 +807,28 @@ def _directions_and_fits(obs, f, residual, directions):
     return measured, baseline, fits
 
 
+def test_the_frequency_channel_rejects_a_null_campaign_at_its_level():
+    # under the discrepancy alone the frequency channel's omnibus test (channel_gaps) flags GAP_LEVEL of the
+    # campaigns, within binomial scatter: its threshold is its chi-square law's quantile, with the dof it states
+    from workbench.diagnose.decision import GAP_LEVEL, channel_gaps
+    from workbench.diagnose.observations import Discrepancy, Observations
+
+    rng = np.random.default_rng(5)
+    n_cond, n_modes, se = 2, 8, 5e-4
+    d = Discrepancy(0.002, 0.0, 0.2)
+    f = np.tile(np.linspace(50.0, 900.0, n_modes), (n_cond, 1))
+    obs = Observations(np.array([1.0, 5.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (n_cond, 1, 1)),
+                       None, None, d)
+    draws, flagged = 2000, 0
+    for _ in range(draws):
+        noise = d.mode_sd * rng.standard_normal(n_modes)[None, :] + se * rng.standard_normal((n_cond, n_modes))
+        measured, baseline, _ = _directions_and_fits(obs, f, noise, [])
+        gap = channel_gaps(measured, f, baseline, [])["frequency"]
+        flagged += gap["omnibus"]
+    assert gap["dof"] == n_cond * n_modes
+    assert abs(flagged / draws - GAP_LEVEL) <= 3 * np.sqrt(GAP_LEVEL * (1 - GAP_LEVEL) / draws)
+
+
 def test_the_targeted_gap_test_keeps_its_level_and_sees_what_the_omnibus_test_misses():
     # 15 candidate directions: under the discrepancy alone the targeted test (Bonferroni over the candidates)
     # flags at most GAP_LEVEL of the campaigns; with a 3.5-sigma change along one of them it flags it as often
