@@ -760,9 +760,11 @@ def test_softening_is_nil_at_the_lowest_level_and_grows_with_it():
 def test_model_discrepancy_is_not_a_gap_and_an_effect_beyond_it_is():
     # residuals drawn from the discrepancy itself (a common shift of every mode, a per-mode error shared by the
     # two excitation levels, the measurement error): their chi-square follows its law (mean n, 1 % beyond the
-    # 99 % quantile); one mode 1.5 % off, five times the per-mode error, is a gap
+    # 99 % quantile), and the frequency channel's omnibus test (channel_gaps) flags GAP_LEVEL of them; one mode
+    # 1.5 % off, five times the per-mode error, is a gap
     from scipy.stats import chi2 as chi2_law
 
+    from workbench.diagnose.decision import GAP_LEVEL, channel_gaps
     from workbench.diagnose.observations import Discrepancy, Observations, frequency_chi2
 
     rng = np.random.default_rng(7)
@@ -771,14 +773,17 @@ def test_model_discrepancy_is_not_a_gap_and_an_effect_beyond_it_is():
     f = np.tile(np.linspace(50.0, 900.0, n_modes), (n_cond, 1))
     obs = Observations(np.array([1.0, 5.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (n_cond, 1, 1)),
                        None, None, d)
-    values = []
+    values, flagged = [], 0
     for _ in range(4000):
         rel = (d.common_sd * rng.standard_normal() + d.mode_sd * rng.standard_normal(n_modes)[None, :]
                + se * rng.standard_normal((n_cond, n_modes)))
         values.append(frequency_chi2(obs, f * (1 + rel)))
+        measured, baseline, _ = _directions_and_fits(obs, f, rel, [])
+        flagged += channel_gaps(measured, f, baseline, [])["frequency"]["omnibus"]
     n = n_cond * n_modes
     assert np.mean(values) == pytest.approx(n, rel=0.05)
     assert np.mean(np.array(values) > chi2_law.ppf(0.99, n)) == pytest.approx(0.01, abs=0.006)
+    assert flagged / 4000 == pytest.approx(GAP_LEVEL, abs=3 * np.sqrt(GAP_LEVEL * (1 - GAP_LEVEL) / 4000))
     one_off = np.ones((n_cond, n_modes))
     one_off[:, 3] = 1.015
     assert frequency_chi2(obs, f * one_off) > chi2_law.ppf(0.99, n)
@@ -805,28 +810,6 @@ def _directions_and_fits(obs, f, residual, directions):
     baseline = CandidateFit("baseline", None, {}, "frequency", base, base, base, base, 0.0, 0.0, 0.0, None, None, 0,
                             0.0)
     return measured, baseline, fits
-
-
-def test_the_frequency_channel_rejects_a_null_campaign_at_its_level():
-    # under the discrepancy alone the frequency channel's omnibus test (channel_gaps) flags GAP_LEVEL of the
-    # campaigns, within binomial scatter: its threshold is its chi-square law's quantile, with the dof it states
-    from workbench.diagnose.decision import GAP_LEVEL, channel_gaps
-    from workbench.diagnose.observations import Discrepancy, Observations
-
-    rng = np.random.default_rng(5)
-    n_cond, n_modes, se = 2, 8, 5e-4
-    d = Discrepancy(0.002, 0.0, 0.2)
-    f = np.tile(np.linspace(50.0, 900.0, n_modes), (n_cond, 1))
-    obs = Observations(np.array([1.0, 5.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (n_cond, 1, 1)),
-                       None, None, d)
-    draws, flagged = 2000, 0
-    for _ in range(draws):
-        noise = d.mode_sd * rng.standard_normal(n_modes)[None, :] + se * rng.standard_normal((n_cond, n_modes))
-        measured, baseline, _ = _directions_and_fits(obs, f, noise, [])
-        gap = channel_gaps(measured, f, baseline, [])["frequency"]
-        flagged += gap["omnibus"]
-    assert gap["dof"] == n_cond * n_modes
-    assert abs(flagged / draws - GAP_LEVEL) <= 3 * np.sqrt(GAP_LEVEL * (1 - GAP_LEVEL) / draws)
 
 
 def test_the_targeted_gap_test_keeps_its_level_and_sees_what_the_omnibus_test_misses():
