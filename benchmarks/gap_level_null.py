@@ -2,7 +2,7 @@
 
 Run from the repository root: ``python benchmarks/gap_level_null.py [--seeds 9002 9003 ...] [--workers 2]``
 (about 10 minutes on 2 cores for the six default development seeds, 19 no-effect campaigns each). Not a test: it
-measures the slack of each channel's null for the choice of ``GAP_LEVELS`` (`workbench.diagnose.decision`),
+measures the slack of each channel's null for the choice of ``GAP_LEVEL`` (`workbench.diagnose.decision`),
 on development seeds only (never a validation seed before its run).
 
 Each no-effect case of a seed's mix (`workbench.workflow.proving_validation.validation_specs`: every nuisance
@@ -63,7 +63,7 @@ def main() -> None:
         for level in LEVELS:
             hits = sum(r[channel] < level for r in results)
             w = wilson(hits, len(results))
-            cells.append(f"{level:.0%}: {hits:3d} {100 * hits / len(results):5.1f} % "
+            cells.append(f"{level:.0%}: {hits:3d} {100 * w['rate']:5.1f} % "
                          f"[{w['ci95'][0] * 100:4.1f}, {w['ci95'][1] * 100:4.1f}]")
         print(f"  {channel:9s} " + "   ".join(cells))
 

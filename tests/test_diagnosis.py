@@ -773,8 +773,8 @@ def test_model_discrepancy_is_not_a_gap_and_an_effect_beyond_it_is():
     f = np.tile(np.linspace(50.0, 900.0, n_modes), (n_cond, 1))
     obs = Observations(np.array([1.0, 5.0]), f, f * se, np.tile(np.eye(n_modes) * se ** 2, (n_cond, 1, 1)),
                        None, None, d)
-    values, flagged = [], 0
-    for _ in range(4000):
+    values, flagged, draws = [], 0, 4000
+    for _ in range(draws):
         rel = (d.common_sd * rng.standard_normal() + d.mode_sd * rng.standard_normal(n_modes)[None, :]
                + se * rng.standard_normal((n_cond, n_modes)))
         values.append(frequency_chi2(obs, f * (1 + rel)))
@@ -783,7 +783,7 @@ def test_model_discrepancy_is_not_a_gap_and_an_effect_beyond_it_is():
     n = n_cond * n_modes
     assert np.mean(values) == pytest.approx(n, rel=0.05)
     assert np.mean(np.array(values) > chi2_law.ppf(0.99, n)) == pytest.approx(0.01, abs=0.006)
-    assert flagged / 4000 == pytest.approx(GAP_LEVEL, abs=3 * np.sqrt(GAP_LEVEL * (1 - GAP_LEVEL) / 4000))
+    assert flagged / draws == pytest.approx(GAP_LEVEL, abs=3 * np.sqrt(GAP_LEVEL * (1 - GAP_LEVEL) / draws))
     one_off = np.ones((n_cond, n_modes))
     one_off[:, 3] = 1.015
     assert frequency_chi2(obs, f * one_off) > chi2_law.ppf(0.99, n)
