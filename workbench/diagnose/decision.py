@@ -18,6 +18,10 @@ seed's run, never tuned on one):
    mode and level), with the degrees of freedom of its fitted parameters removed (its level, and its trend from
    three modes on; two always until seed 21), and at several levels the line in amplitude tested apart as for
    the frequencies.
+   The frequencies have a gap too where the residual moves along one of the frame's own toleranced columns (a
+   member end's x or y, a member's second moment or area) by more than its stated allowance makes likely
+   (``allowance``, `workbench.diagnose.allowance`: the least p-value of the columns, family-wise, below
+   ``GAP_LEVEL``; since seed 28): a column built millimetres off the drawing, which neither test looked along.
    The omnibus test sees a gap of any shape, the targeted one a smaller gap of a shape the vocabulary names. An
    effect is named only on a channel with a gap: a damping gap never licenses a frequency effect.
    With several excitation levels, the frequencies' chi-square is split into the line in amplitude through
@@ -95,6 +99,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_law
 from scipy.stats import f as f_law
 
+from workbench.diagnose.allowance import allowance_evidence
 from workbench.diagnose.combined import PairFit
 from workbench.diagnose.family import NullFamily, damping_null, null_family
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_columns
@@ -137,7 +142,9 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
     levels, ``levels``: the line's chi-square, its degrees of freedom, the scatter's, its F p-value, the best
     softening drop's p-value and whether the levels differ (``gap``); for damping at several levels likewise its
     ``levels`` (the line in amplitude, F with the scatter's degrees of freedom; no candidate explains it, but a
-    gap it makes is a gap); ``gap`` when a test rejects at `GAP_LEVEL`.
+    gap it makes is a gap); for frequencies ``allowance``, the test along the frame's toleranced columns
+    (`workbench.diagnose.allowance.allowance_evidence`, None without them); ``gap`` when a test rejects at
+    `GAP_LEVEL`.
     ``null``: the frequency candidates' least p-value under no effect (`frequency_null`); None: Bonferroni;
     ``damping`` likewise for the damping candidates (`damping_family`).
     """
@@ -176,7 +183,11 @@ def channel_gaps(obs: Observations, baseline_hz: np.ndarray, baseline_fit: Candi
                                    "p_value": p_levels, "gap": bool(p_levels < GAP_LEVEL)}
             omnibus = omnibus or p_levels < GAP_LEVEL
         out[name]["omnibus"] = bool(omnibus)
-        out[name]["gap"] = bool(omnibus or evidence["p_value"] < GAP_LEVEL)
+        beyond = False
+        if name == "frequency":  # a member end or a section several of its allowances off (allowance.py)
+            out[name]["allowance"] = allowance = allowance_evidence(obs, baseline_hz)
+            beyond = allowance is not None and allowance["p_value"] < GAP_LEVEL
+        out[name]["gap"] = bool(omnibus or beyond or evidence["p_value"] < GAP_LEVEL)
     return out
 
 

@@ -27,7 +27,7 @@ from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_
 from workbench.model.frame import Frame, member_ends, moved_frame
 from workbench.model.structure import structure_modes, structure_of
 
-__all__ = ["STEP_M", "STEP_RELATIVE", "geometry_columns", "section_columns"]
+__all__ = ["STEP_M", "STEP_RELATIVE", "geometry_columns", "section_columns", "column_names"]
 
 STEP_M = 1e-4  # m, the forward difference's step: the change is linear over it to 1e-3 of itself
 STEP_RELATIVE = 1e-4  # a section property's relative forward-difference step
@@ -78,6 +78,17 @@ def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
             moved = replace(frame, sections={**frame.sections, own: stepped}, members=tuple(members))
             columns.append(_change(base, moved) * (sd / STEP_RELATIVE))
     return np.array(columns).T
+
+
+def column_names(frame: Frame, second_moment_sd: float = SECOND_MOMENT_SD,
+                 area_sd: float = AREA_SD) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The names of `geometry_columns`' columns (``<point>.x``, ``<point>.y``) and of `section_columns`'
+    (``<member>.second_moment``, then ``<member>.area``; a property whose sd is 0 has none), in their order.
+    """
+    geometry = tuple(f"{name}.{axis}" for name in member_ends(frame) for axis in ("x", "y"))
+    sections = tuple(f"{member.name}.{key}" for key, sd in (("second_moment", second_moment_sd), ("area", area_sd))
+                     if sd > 0 for member in frame.members)
+    return geometry, sections
 
 
 def _change(base: Baseline, moved: Frame) -> np.ndarray:

@@ -113,6 +113,8 @@ class Discrepancy:
     geometry: np.ndarray | None = field(default=None, compare=False)
     sections: np.ndarray | None = field(default=None, compare=False)
     allowance: Allowance | None = None  # the sds ``geometry`` and ``sections`` are per (None: no frame geometry)
+    geometry_names: tuple[str, ...] = ()  # ``geometry``'s columns (`workbench.diagnose.geometry.column_names`)
+    section_names: tuple[str, ...] = ()  # ``sections``' columns likewise
 
 
 @dataclass(frozen=True)

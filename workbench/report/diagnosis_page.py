@@ -180,9 +180,18 @@ def _levels_text(gap: dict) -> str:
 def _gaps_text(record: dict) -> str:
     gaps = record.get("gaps") or {}
     parts = [f"{name}: chi-square {g['chi2']:.3g} against {g['threshold']:.3g} allowed{_levels_text(g)}"
-             f"{_evidence_text(g.get('evidence'))} ({'a gap' if g['gap'] else 'within the errors'})"
+             f"{_evidence_text(g.get('evidence'))}{_allowance_text(g.get('allowance'))} "
+             f"({'a gap' if g['gap'] else 'within the errors'})"
              for name, g in gaps.items()]
     return "; ".join(parts) or "not tested"
+
+
+def _allowance_text(allowance: dict | None) -> str:
+    """The test along the frame's toleranced columns (`workbench.diagnose.allowance`)."""
+    if not allowance:
+        return ""
+    return (f"; along the frame's toleranced columns, {allowance['direction']} lowers it by "
+            f"{allowance['chi2_drop']:.3g} (p = {allowance['p_value']:.2g} over {allowance['columns']} columns)")
 
 
 def _evidence_text(evidence: dict | None) -> str:
