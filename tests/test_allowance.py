@@ -66,7 +66,8 @@ def test_the_allowance_test_keeps_its_level_and_finds_a_column_built_off():
     draws, flagged, named = 200, {"null": 0, "off": 0}, 0
     for _ in range(draws):
         factor = rng.standard_normal(k)
-        noise = (columns @ factor + 1e-3 * rng.standard_normal(n_modes))[None, :] + se * rng.standard_normal((2, n_modes))
+        shared = columns @ factor + 1e-3 * rng.standard_normal(n_modes)  # as built and per-mode: both levels
+        noise = shared[None, :] + se * rng.standard_normal((2, n_modes))
         for case, rel in (("null", noise), ("off", noise + 4.5 * columns[:, 2][None, :])):
             result = allowance_evidence(obs, f / (1.0 + rel))  # the model predicts f; the campaign measured f (1 + rel)
             hit = result["p_value"] < GAP_LEVEL
