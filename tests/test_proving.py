@@ -51,7 +51,7 @@ from workbench.proving.cases import (
     reached_level,
 )
 from workbench.proving.fem import discretise
-from workbench.proving.footprint import article_frequencies, calibrate, footprint
+from workbench.proving.footprint import EDGE_SHARE, article_frequencies, calibrate, footprint, measurable_top_hz
 from workbench.proving.frames import BUNDLED, FRAME_NAMES, proving_frame
 from workbench.proving.mechanisms import EFFECTS, NONE, OUTSIDE, VARIANTS, vocabulary_mechanism
 from workbench.proving.outside import OUTSIDE_VARIANTS, outside_mechanism
@@ -480,6 +480,29 @@ def test_the_footprint_counts_only_the_modes_the_band_holds(two_bolt):
     x, reached = calibrate(base, mech, 0.01, f_max_hz=f_max)
     assert abs(reached / 0.01 - 1) <= 0.05
     assert np.max(np.abs(article_frequencies(mech.build(base, x))[:3] / f0[:3] - 1.0)) == pytest.approx(reached)
+
+
+def test_the_footprint_skips_a_mode_whose_resonance_the_band_cuts(two_bolt):
+    # a mode just under the band's top has its half-power band cut: no extraction reads it, so a case's
+    # footprint must not sit there (seeds 24-27: "large" joint damping carried by a mode 1.6 % under the top)
+    frame, base, _ = two_bolt
+    mech = vocabulary_mechanism(frame, "support_compliance", np.random.default_rng(5))
+    x = mech.bounds[0] ** 0.5 * mech.bounds[1] ** 0.5
+    f0, f1 = article_frequencies(base), article_frequencies(mech.build(base, x))
+    shift = np.abs(f1 / f0 - 1.0)
+    cut, held = f0[3] * (1.0 + 0.5 * EDGE_SHARE), f0[3] * (1.0 + 2.0 * EDGE_SHARE)
+    assert footprint(base, mech, x, f_max_hz=cut) == pytest.approx(float(shift[:3].max()), rel=1e-9)
+    assert footprint(base, mech, x, f_max_hz=held) == pytest.approx(float(shift[:4].max()), rel=1e-9)
+    assert measurable_top_hz(1250.0) == pytest.approx(1250.0 / (1.0 + EDGE_SHARE))
+
+
+def test_the_measurable_margin_holds_the_proving_grounds_largest_damping():
+    # the half-power half-width of a mode at the band's top, at the nuisances' largest damping level and trend
+    # plus the large damping rung, must fit in the margin the footprint leaves
+    from workbench.proving.nuisances import NuisanceSettings
+    nuisances, top_hz = NuisanceSettings(), CampaignSettings().f_max_hz
+    largest = nuisances.damping_range[1] * (top_hz / 100.0) ** nuisances.damping_trend_range[1]
+    assert largest + DAMPING_FOOTPRINTS["large"] <= EDGE_SHARE
 
 
 def test_a_case_is_read_at_the_rung_its_footprint_reached():
