@@ -69,7 +69,7 @@ seed's run, never tuned on one):
 3. **Confidence** (``verdict.confidence``): the pseudo-Bayesian-model-average weight of the named effect
    type, ``w_i ~ exp(-score_i / 2)`` over the channel's candidates and the baseline, the score being minus
    twice the leave-one-out log predictive density (held-out chi-square plus the log determinant of the
-   covariance the candidate's form error widens, `workbench.diagnose.observations.frequency_score`), summed
+   covariance the candidate's form error widens, `workbench.diagnose.predictive.frequency_score`), summed
    over the places of that effect. An effect is named only above `NAME_CONFIDENCE`: two effects that
    predict the held-out modes equally well are not told apart, and the diagnosis says so (``partial``).
 4. **Two effects** (``also``): when no single candidate explains a frequency gap, the best pair
@@ -83,7 +83,11 @@ seed's run, never tuned on one):
    measured levels contradict it (`workbench.diagnose.frf_levels.LEVEL_ALPHA`) and it fits them worse than the
    nominal model does, the frequencies found an impostor (two cracks whose frequencies a point mass
    mimics, a mass that a softer support mimics): the verdict is then ``unexplained`` with that effect as the
-   partial explanation and the level test beside it (``partial.frf_levels``).
+   partial explanation and the level test beside it (``partial.frf_levels``). Unless the levels place the
+   effect (since seed 30, `_placed_by_levels`): the frequencies cannot tell a symmetric frame's left support
+   from its right, whose shapes are mirrors, and the levels can. The best other candidate of the same effect
+   (another place or form) that explains the gap as well and that the levels do not contradict is named
+   instead, the contradicted one recorded as ``frf_levels.instead_of``.
 6. **Otherwise** ``unexplained``, with the best partial explanation (``partial``: the best candidate on a
    channel with a gap, when it narrows that gap, `_shrinks`). ``none`` only when no channel has a gap.
 """
@@ -406,9 +410,17 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
         primary, confidence = named["frequency"]
         best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
         test = frf_levels(primary) if frf_levels is not None else None
+        instead_of = None
         if test is not None and test.contradicted:
-            return _contradicted(primary, baseline, gaps, test)
-        level_record = None if test is None else test.record()
+            placed = _placed_by_levels(primary, _eligible("frequency", ranking, gaps["frequency"]), baseline,
+                                       gaps["frequency"], frf_levels)
+            if placed is None:
+                return _contradicted(primary, baseline, gaps, test)
+            instead_of = {"effect": primary.effect, "where": primary.where, "form": primary.form,
+                          "p_value": test.p_value}
+            primary, test = placed
+            best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
+        level_record = None if test is None else {**test.record(), **({"instead_of": instead_of} if instead_of else {})}
     elif frequency_gap:
         singles = _eligible("frequency", ranking, gaps["frequency"])
         chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None
@@ -427,6 +439,20 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
         also.append(_entry(named["damping"][0], baseline))
     return Verdict(primary.effect, primary.where, shrinkage, confidence, best_hz, also=also, gaps=gaps,
                    frf_levels=level_record)
+
+
+def _placed_by_levels(named: CandidateFit, eligible: list[CandidateFit], baseline: CandidateFit, gap: dict,
+                      frf_levels: Callable[[CandidateFit], LevelTest | None]) -> tuple[CandidateFit, LevelTest] | None:
+    """The best other candidate of ``named``'s effect (another place or form) that explains the frequency gap
+    within its range and whose level test exists and does not contradict it (module docstring, 5), with that test.
+    """
+    for c in eligible:
+        if c.effect != named.effect or c.key == named.key or c.at_bound or not _explains(c, baseline, gap):
+            continue
+        test = frf_levels(c)
+        if test is not None and not test.contradicted:
+            return c, test
+    return None
 
 
 def _contradicted(fit: CandidateFit, baseline: CandidateFit, gaps: dict, test: LevelTest) -> Verdict:
