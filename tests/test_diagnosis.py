@@ -472,6 +472,42 @@ def test_a_candidate_that_closes_the_gap_in_its_chi_square_is_named_though_its_r
     assert verdict.shrinkage == pytest.approx(-0.2)  # the contract's number, of the raw RMS
 
 
+def test_the_levels_move_a_named_effect_to_the_place_they_do_not_contradict():
+    # a symmetric frame's two supports move the frequencies alike; their shapes are mirrors, and the levels tell
+    # them apart: the right support is named where the frequencies preferred the left by a hair, but never an
+    # effect the levels contradict everywhere, nor another effect in its stead
+    from workbench.diagnose.decision import decide
+    from workbench.diagnose.frf_levels import LevelTest
+
+    f, obs = _flat_observations(6)
+    off = f * 1.01
+    base = _frequency_fit("baseline", None, 600.0, 0.01)
+    left = _frequency_fit("support_compliance", "base_left", 4.0, 1e-4)
+    right = _frequency_fit("support_compliance", "base_right", 4.2, 1e-4)
+    mass = _frequency_fit("added_mass", "beam", 4.1, 1e-4)
+    modes, ones = np.arange(1, 7), np.ones(6)
+    fits, mirrored = LevelTest(modes, ones, ones, 3.0, 40.0, 5), LevelTest(modes, ones, ones, 90.0, 40.0, 5)
+    predictions = {c.key: off for c in (left, right, mass)}
+
+    def levels(by_place):
+        return lambda c: by_place[c.where]
+
+    verdict = decide(obs, off, base, [left, right], predictions, frf_levels=levels({"base_left": mirrored,
+                                                                                     "base_right": fits}))
+    assert (verdict.effect, verdict.where) == ("support_compliance", "base_right")
+    assert verdict.frf_levels["instead_of"]["where"] == "base_left" and not verdict.frf_levels["contradicted"]
+    # contradicted at both places, or the other explanation another effect: the contradicted one is the partial
+    for ranking, by_place in (([left, right], {"base_left": mirrored, "base_right": mirrored}),
+                              ([left, mass], {"base_left": mirrored, "beam": fits})):
+        verdict = decide(obs, off, base, ranking, predictions, frf_levels=levels(by_place))
+        assert verdict.effect == "unexplained" and verdict.partial["where"] == "base_left"
+        assert verdict.partial["frf_levels"]["contradicted"]  # taken away by the levels, not for want of confidence
+    # an alternative the levels cannot test is no evidence for its place
+    verdict = decide(obs, off, base, [left, right], predictions, frf_levels=levels({"base_left": mirrored,
+                                                                                     "base_right": None}))
+    assert verdict.effect == "unexplained"
+
+
 def test_a_candidate_at_a_bound_of_its_range_is_never_named():
     # a fit at the end of a parameter's range is no estimate (the data ask for more of the effect than the range
     # holds): the best candidate otherwise explains the gap, but is only the partial explanation, flagged
