@@ -888,8 +888,7 @@ def test_the_targeted_gap_test_keeps_its_level_and_sees_what_the_omnibus_test_mi
 def test_a_candidates_form_error_is_shared_by_the_excitation_levels():
     # the form's error is one error per mode at every level: it widens a change that is the same at both
     # levels, never a difference between the levels, which the measurement scatter alone measures
-    from workbench.diagnose.observations import Discrepancy, Observations, frequency_chi2
-    from workbench.diagnose.predictive import frequency_score
+    from workbench.diagnose.observations import Discrepancy, Observations, frequency_chi2, frequency_score
 
     n_modes, se = 4, 1e-4
     f = np.tile(np.linspace(100.0, 400.0, n_modes), (2, 1))

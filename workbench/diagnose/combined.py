@@ -16,9 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.diagnose.fitting import CandidateFit, Frequencies, held_columns
-from workbench.diagnose.observations import Observations, frequency_chi2_many, rms
-from workbench.diagnose.predictive import frequency_score
+from workbench.diagnose.fitting import CandidateFit, Frequencies
+from workbench.diagnose.observations import Observations, frequency_chi2_many, frequency_score, rms
 
 __all__ = ["PAIR_POOL", "PairFit", "PairGrid", "form_pairs", "pair_fits"]
 
@@ -116,14 +115,13 @@ def pair_fits(singles: list[CandidateFit], models: dict[tuple[str, str | None, s
         pair = (models[first.key], models[second.key])
         grid = PairGrid(pair, obs, baseline_hz)
         u, in_hz, in_chi2 = grid.fit(everything)
-        rows = np.full((n_modes, *obs.frequency_hz.shape), np.nan)
+        held = np.full_like(obs.frequency_hz, np.nan)
         for k in range(n_modes):
             mask = everything.copy()
             mask[k] = False
-            rows[k] = grid.fit(mask)[1]
-        held = held_columns(rows)
+            held[:, k] = grid.fit(mask)[1][:, k]
         params = (_parameters(first, pair[0], u[0]), _parameters(second, pair[1], u[1]))
-        held_chi2, held_logdet = frequency_score(obs, rows, baseline_hz)
+        held_chi2, held_logdet = frequency_score(obs, held, baseline_hz)
         out.append(PairFit(first, second, params, in_chi2, held_chi2, rms(in_hz / obs.frequency_hz - 1.0),
                            rms(held / obs.frequency_hz - 1.0), in_hz, held_logdet,
                            grid.at_bound(u)))

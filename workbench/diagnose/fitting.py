@@ -12,11 +12,8 @@ the other modes and predicts that mode (all its conditions, frequency and dampin
 error is the error of those predictions. A candidate that fits by bending one parameter to noise
 predicts the held-out modes badly; the effect that is present predicts them. The baseline has no
 frequency parameter, so its held-out frequency error is its in-sample error. Candidates are ranked
-by their held-out score: for the frequencies minus twice the leave-one-mode-out predictive density, each
-left-out mode read conditional on the others' residuals under the same fit, the modes' errors being
-correlated (`workbench.diagnose.predictive`; through seed 29 the chi-square of the gathered held-out
-columns); for damping, whose modes' errors are independent, the held-out chi-square. The ranking also lists
-the BIC, ``chi2 + p ln N``.
+by their total held-out chi-square (frequency and damping, each residual over its standard error);
+the ranking also lists the BIC, ``chi2 + p ln N``.
 """
 
 from __future__ import annotations
@@ -37,14 +34,14 @@ from workbench.diagnose.observations import (
     damping_whiten,
     frequency_chi2,
     frequency_chi2_many,
+    frequency_score,
     mode_frequency_hz,
     rms,
 )
-from workbench.diagnose.predictive import frequency_score
 from workbench.rig.effects import JOINT_DAMPING
 
 __all__ = ["DAMPING_TREND_MODES", "CandidateFit", "Frequencies", "fit_curve", "damping_columns", "damping_fit",
-           "evaluate", "held_columns"]
+           "evaluate"]
 
 DAMPING_TREND_MODES = 3  # the damping fit takes a trend in log frequency from this many modes on
 SCAN_POINTS = 161  # parameter values scanned before Brent's method
@@ -220,20 +217,15 @@ def damping_columns(obs: Observations, modes_mask: np.ndarray) -> list[np.ndarra
     return [np.ones_like(obs.damping)] + ([trend] if int(np.sum(modes_mask)) >= DAMPING_TREND_MODES else [])
 
 
-def _left_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.ndarray:
-    """(n_modes, *like.shape): row ``k`` every mean predicted by ``fit`` on the modes other than ``k``."""
+def _held_out(fit: Callable[[np.ndarray], np.ndarray], like: np.ndarray) -> np.ndarray:
+    """Each mode's column predicted by ``fit`` on the other modes."""
     n_modes = like.shape[1]
-    rows = np.full((n_modes, *like.shape), np.nan)
+    held = np.full_like(like, np.nan)
     for k in range(n_modes):
         mask = np.ones(n_modes, bool)
         mask[k] = False
-        rows[k] = fit(mask)
-    return rows
-
-
-def held_columns(rows: np.ndarray) -> np.ndarray:
-    """Each mode's column of the fit that left it out (`_left_out`'s rows): (n_cond, n_modes)."""
-    return np.stack([rows[k][:, k] for k in range(rows.shape[0])], axis=1)
+        held[:, k] = fit(mask)[:, k]
+    return held
 
 
 def evaluate(effect: str, where: str | None, parameters_of: Callable[[Any], dict], channel: str,
@@ -267,12 +259,11 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[Any], dict
         u, in_f = fit_frequency(everything)
         params = parameters_of(u)
         bound = bool(at_bound(u)) if at_bound is not None else False
-        rows_f = _left_out(lambda mask: fit_frequency(mask)[1], obs.frequency_hz)
-        held_f = held_columns(rows_f)
+        held_f = _held_out(lambda mask: fit_frequency(mask)[1], obs.frequency_hz)
     else:
-        in_f = held_f = rows_f = baseline_hz
+        in_f = held_f = baseline_hz
     in_chi2 = in_chi2_f = frequency_chi2(obs, in_f)
-    held_chi2_f, held_logdet = frequency_score(obs, rows_f, baseline_hz)
+    held_chi2_f, held_logdet = frequency_score(obs, held_f, baseline_hz)
     held_chi2_d = 0.0
     d_rms = held_d_rms = None
     n_obs = int(np.sum(~np.isnan(obs.frequency_hz)))
@@ -281,9 +272,7 @@ def evaluate(effect: str, where: str | None, parameters_of: Callable[[Any], dict
         if fit_damping is None:
             raise ValueError(f"{effect}: damping was measured, but no damping fit was given")
         in_d, d_params = fit_damping(everything)
-        # the damping means' model errors are independent between modes (`damping_whiten`): the chi-square of
-        # the held-out columns is their leave-one-out predictive density
-        held_d = held_columns(_left_out(lambda mask: fit_damping(mask)[0], damping))
+        held_d = _held_out(lambda mask: fit_damping(mask)[0], damping)
         if channel == "damping":
             params = d_params
         in_chi2 += damping_chi2(obs, in_d)

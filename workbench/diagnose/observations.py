@@ -32,8 +32,8 @@ error (`Discrepancy`), so that the diagnosis does not read an as-built tolerance
 - a candidate's **form**: an effect of the vocabulary is one parametrisation of a physical change (a
   rotational spring for a clamp, a zone's modulus for a joint), and the real mechanism distributes its change
   over the modes somewhat differently. A candidate's prediction of a mean is trusted to `FORM_SD` (10 %) of
-  the change it predicts there (`workbench.diagnose.predictive.frequency_score`), on top of the errors above;
-  like the per-mode error, it is one error per mode, shared by the excitation levels;
+  the change it predicts there (`frequency_score`), on top of the errors above; like the per-mode error, it is
+  one error per mode, shared by the excitation levels;
 - the frame's **geometry** (``geometry``, since seed 24): a frame file's coordinates were measured with a
   rule, and a bending mode moves as the inverse square of its member's length, so that a member end half a
   millimetre off moves modes by a few tenths of a percent, each by its own amount. Each member end's x and y
@@ -70,7 +70,7 @@ __all__ = ["RELATIVE_FLOOR", "DAMPING_FLOOR", "MODEL_FLOOR", "COMMON_SD", "DAMPI
            "SECOND_MOMENT_SD", "AREA_SD", "FORM_SD", "Allowance", "DEFAULT_ALLOWANCE",
            "Discrepancy",
            "Observations", "observations", "level_contrast_chi2", "frequency_chi2", "frequency_chi2_many",
-           "damping_chi2",
+           "frequency_score", "damping_chi2",
            "damping_whiten", "damping_levels_chi2", "mode_frequency_hz", "chi2", "rms"]
 
 RELATIVE_FLOOR = 1e-4  # floor of the relative standard error of a mean frequency
@@ -364,6 +364,29 @@ def frequency_chi2_many(obs: Observations, predicted_hz: np.ndarray, mask: np.nd
     r = (predicted_hz / obs.frequency_hz - 1.0)[:, present]
     out = np.einsum("gi,ij,gj->g", r, w, r)
     return np.where(np.all(np.isfinite(r), axis=1), out, np.inf)
+
+
+def frequency_score(obs: Observations, predicted_hz: np.ndarray, reference_hz: np.ndarray) -> tuple[float, float]:
+    """``(chi2, log_det)`` of a candidate's predicted means under the covariance of `frequency_chi2` plus its
+    form's error, ``FORM_SD * (predicted / reference - 1)`` on each mean, shared by a mode's excitation levels
+    (module docstring).
+
+    ``log_det`` is ``log det C_form - log det C``: ``chi2 + log_det`` is minus twice the Gaussian log density up
+    to a constant shared by every candidate, so that a candidate does not gain by predicting large changes.
+    """
+    mask = np.ones(obs.frequency_hz.shape[1], bool)
+    present, cov = obs.joint_covariance(mask)
+    extra = (FORM_SD * (predicted_hz / reference_hz - 1.0))[present]
+    r = (predicted_hz / obs.frequency_hz - 1.0)[present]
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(extra))):
+        return float("inf"), 0.0
+    # the form's error is the model's, as the per-mode discrepancy is: one error per mode, the same at every
+    # excitation level (scaled by that level's change). Drawn anew per level, it would widen the differences
+    # between levels, which only the measurement scatter limits, and its log det would swamp the score.
+    mode = np.nonzero(present)[1]
+    widened = cov + np.outer(extra, extra) * (mode[:, None] == mode[None, :])
+    chi2 = float(r @ np.linalg.solve(widened, r))
+    return chi2, float(np.linalg.slogdet(widened)[1] - np.linalg.slogdet(cov)[1])
 
 
 def damping_chi2(obs: Observations, predicted: np.ndarray) -> float:
