@@ -69,7 +69,7 @@ seed's run, never tuned on one):
 3. **Confidence** (``verdict.confidence``): the pseudo-Bayesian-model-average weight of the named effect
    type, ``w_i ~ exp(-score_i / 2)`` over the channel's candidates and the baseline, the score being minus
    twice the leave-one-out log predictive density (held-out chi-square plus the log determinant of the
-   covariance the candidate's form error widens, `workbench.diagnose.predictive.frequency_score`), summed
+   covariance the candidate's form error widens, `workbench.diagnose.observations.frequency_score`), summed
    over the places of that effect. An effect is named only above `NAME_CONFIDENCE`: two effects that
    predict the held-out modes equally well are not told apart, and the diagnosis says so (``partial``).
 4. **Two effects** (``also``): when no single candidate explains a frequency gap, the best pair
