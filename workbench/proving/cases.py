@@ -7,7 +7,8 @@ the generated ones (`workbench.proving.frames`).
 `case_campaign` turns a spec into a campaign and its truth.
 
 **Magnitudes** are footprints (`workbench.proving.footprint`), so that a level means the same on every
-geometry: the largest relative frequency shift of the modes in the band of 0.3 % (small: about the
+geometry: the largest relative frequency shift of the modes the band measures (`footprint.measurable_top_hz`:
+not one whose resonance the band's top cuts) of 0.3 % (small: about the
 scatter the nuisances leave between tests), 1 % (medium), 3 % (large); for joint damping the largest
 added damping ratio of 0.1 %, 0.3 %, 1 %. A secondary effect has a third of the primary's footprint.
 Where a mechanism cannot reach a level within its physical bounds (a wire tie's strength, a stinger's
