@@ -489,3 +489,17 @@ def test_a_damping_candidate_is_judged_on_its_damping_error(diagnosed, tmp_path)
     said = "leaves 75.0 % of the nominal model's held-out error (held-out damping-ratio RMS 0.15 % against 0.2 %)"
     assert said in text
     assert "leaves 100.0 %" not in text
+
+
+def test_the_page_says_when_the_levels_moved_the_place():
+    # the levels placed the effect (`decision._placed_by_levels`): the page names the place the frequencies
+    # preferred and why it was not named
+    from workbench.report.diagnosis_page import _frf_levels_text
+
+    test = {"modes": [1, 2], "measured": [1.02, 0.95], "predicted": [1.01, 0.96], "chi2": 1.5, "nominal_chi2": 9.0,
+            "dof": 1, "p_value": 0.22, "contradicted": False, "level": 0.01,
+            "instead_of": {"effect": "support_compliance", "where": "base_right", "form": "ux", "p_value": 3e-9}}
+    text = _frf_levels_text(test)
+    assert "preferred support_compliance at base_right" in text and "p = 3e-09" in text
+    assert text.endswith("consistent with the verdict")
+    assert "preferred" not in _frf_levels_text({k: v for k, v in test.items() if k != "instead_of"})

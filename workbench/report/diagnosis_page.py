@@ -257,6 +257,10 @@ def _frf_levels_text(test: dict) -> str:
             f"common scale (a force calibration) is removed ({pairs}); "
             f"chi2 {test['chi2']:.1f} on {test['dof']} degrees of freedom (nominal model {test['nominal_chi2']:.1f}), "
             f"p = {test['p_value']:.2g}")
+    moved = test.get("instead_of")
+    if moved:  # the levels placed the effect (`workbench.diagnose.decision._placed_by_levels`)
+        told += (f"; the frequencies preferred {moved['effect']} at {moved['where']}, whose levels contradict it "
+                 f"(p = {moved['p_value']:.2g}), so the place the levels agree with is named")
     if test["contradicted"]:
         return (f"{told}: the levels contradict the frequencies' best candidate (p < {test['level']:g}, and it fits "
                 "them worse than the nominal model), so it is only a partial explanation: another mechanism moved "
