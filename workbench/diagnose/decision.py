@@ -411,7 +411,7 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
         best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
         test = frf_levels(primary) if frf_levels is not None else None
         instead_of = None
-        if test is not None and test.contradicted:
+        if test is not None and test.contradicted and frf_levels is not None:
             placed = _placed_by_levels(primary, _eligible("frequency", ranking, gaps["frequency"]), baseline,
                                        gaps["frequency"], frf_levels)
             if placed is None:
