@@ -420,7 +420,9 @@ def decide(obs: Observations, baseline_hz: np.ndarray, baseline: CandidateFit, r
                           "p_value": test.p_value}
             primary, test = placed
             best_hz, shrinkage = predictions[primary.key], _shrinkage(primary, baseline)
-        level_record = None if test is None else {**test.record(), **({"instead_of": instead_of} if instead_of else {})}
+        level_record = None if test is None else test.record()
+        if level_record is not None and instead_of is not None:
+            level_record["instead_of"] = instead_of
     elif frequency_gap:
         singles = _eligible("frequency", ranking, gaps["frequency"])
         chosen = _pair_verdict(pairs, singles, baseline, gaps["frequency"]) if pairs else None

@@ -18,6 +18,7 @@ to the modes with the structure the per-mode floor lacks: the modes of one membe
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
@@ -43,13 +44,7 @@ def geometry_columns(base: Baseline, sd_m: float = GEOMETRY_SD) -> np.ndarray | 
     """
     if not isinstance(base.frame, Frame) or sd_m <= 0:
         return None
-    frame = base.frame
-    columns = []
-    for name in member_ends(frame):
-        for axis in range(2):
-            step = (STEP_M, 0.0) if axis == 0 else (0.0, STEP_M)
-            columns.append(_change(base, moved_frame(frame, {name: step})[0]) * (sd_m / STEP_M))
-    return np.array(columns).T
+    return np.array([_change(base, moved) * (sd_m / STEP_M) for _, moved in _geometry_steps(base.frame)]).T
 
 
 def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
@@ -64,8 +59,32 @@ def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
     """
     if not isinstance(base.frame, Frame) or (second_moment_sd <= 0 and area_sd <= 0):
         return None
-    frame = base.frame
-    columns = []
+    return np.array([_change(base, moved) * (sd / STEP_RELATIVE)
+                     for _, moved, sd in _section_steps(base.frame, second_moment_sd, area_sd)]).T
+
+
+def column_names(frame: Frame, second_moment_sd: float = SECOND_MOMENT_SD,
+                 area_sd: float = AREA_SD) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The names of `geometry_columns`' columns (``<point>.x``, ``<point>.y``) and of `section_columns`'
+    (``<member>.second_moment``, then ``<member>.area``; a property whose sd is 0 has none), in their order.
+    """
+    return (tuple(name for name, _ in _geometry_steps(frame)),
+            tuple(name for name, _, _ in _section_steps(frame, second_moment_sd, area_sd)))
+
+
+def _geometry_steps(frame: Frame) -> Iterator[tuple[str, Frame]]:
+    """Each geometry column's name and the frame with that member end moved by `STEP_M`: the one place that
+    orders the columns, for them and their names.
+    """
+    for name in member_ends(frame):
+        for axis, step in (("x", (STEP_M, 0.0)), ("y", (0.0, STEP_M))):
+            yield f"{name}.{axis}", moved_frame(frame, {name: step})[0]
+
+
+def _section_steps(frame: Frame, second_moment_sd: float, area_sd: float) -> Iterator[tuple[str, Frame, float]]:
+    """Each section column's name, the frame with that member's property stepped by `STEP_RELATIVE` (on its own
+    copy of its section), and the property's sd, in the columns' order (`_geometry_steps`).
+    """
     for key, sd in (("second_moment", second_moment_sd), ("area", area_sd)):
         if sd <= 0:
             continue
@@ -75,20 +94,8 @@ def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
             stepped = replace(section, name=own, **{key: getattr(section, key) * (1.0 + STEP_RELATIVE)})
             members = list(frame.members)
             members[i] = replace(member, section=own)
-            moved = replace(frame, sections={**frame.sections, own: stepped}, members=tuple(members))
-            columns.append(_change(base, moved) * (sd / STEP_RELATIVE))
-    return np.array(columns).T
-
-
-def column_names(frame: Frame, second_moment_sd: float = SECOND_MOMENT_SD,
-                 area_sd: float = AREA_SD) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The names of `geometry_columns`' columns (``<point>.x``, ``<point>.y``) and of `section_columns`'
-    (``<member>.second_moment``, then ``<member>.area``; a property whose sd is 0 has none), in their order.
-    """
-    geometry = tuple(f"{name}.{axis}" for name in member_ends(frame) for axis in ("x", "y"))
-    sections = tuple(f"{member.name}.{key}" for key, sd in (("second_moment", second_moment_sd), ("area", area_sd))
-                     if sd > 0 for member in frame.members)
-    return geometry, sections
+            yield (f"{member.name}.{key}", replace(frame, sections={**frame.sections, own: stepped},
+                                                     members=tuple(members)), sd)
 
 
 def _change(base: Baseline, moved: Frame) -> np.ndarray:
