@@ -2,6 +2,8 @@
 
 Run from the repository root: ``python benchmarks/validation_rescore.py [--since SEED]`` (under a second), or
 ``--outcomes`` (also what each kind of case was called: right, a wrong name, ``none`` or ``unexplained``), or
+``--calibration`` (how often a named effect was right, by its stated confidence, and what a higher naming bar
+would have kept and taken away; pooled over the seeds from ``--since`` on), or
 ``--pair RUN_A RUN_B`` (two output directories of the same cases, e.g. ``reports/diagnosis_validation_seed19
 reports/diagnosis_validation_paired/seed19_fixed``): the cases whose verdict, place, ``also`` or partial differ.
 
@@ -21,7 +23,7 @@ from collections import Counter
 from pathlib import Path
 
 from workbench.proving.cases import FAINT, LEVELS, reached_level
-from workbench.workflow.proving_validation import ProvingResult, measurement_label, quantity_label, score
+from workbench.workflow.proving_validation import ProvingResult, measurement_label, quantity_label, score, wilson
 
 REPO = Path(__file__).resolve().parents[1]
 HEADLINE = ("single_accuracy", "confident_wrong", "none_false_positive", "outside_unexplained", "faint_none")
@@ -88,11 +90,39 @@ def outcomes(results: list[ProvingResult]) -> None:
         print(f"pooled {name:15s} {len(rows):4d} cases: {cells}")
 
 
+CONFIDENCE_BINS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.99, 0.9999, 1.0)
+
+
+def calibration(results: list[ProvingResult]) -> None:
+    """Print how often a named effect was right, by its stated confidence (Wilson 95 %), and for each bar of
+    `CONFIDENCE_BINS` what naming only above it would have done: the right names lost (single effects, and all)
+    and the wrong names taken away. A verdict's effect is read here as named when it is neither ``none`` nor
+    ``unexplained``; a bar's cases would read ``unexplained`` (a rescoring, not a run: the pair the decision
+    would then try is not).
+    """
+    named = [r for r in results if r.verdict not in ("none", "unexplained")]
+    print(f"{len(named)} named of {len(results)} cases; right by stated confidence:")
+    for lo, hi in zip(CONFIDENCE_BINS, CONFIDENCE_BINS[1:]):
+        rows = [r for r in named if lo < r.confidence <= hi]
+        w = wilson(sum(r.right for r in rows), len(rows))
+        print(f"  ({lo:g}, {hi:g}] {_rate(w)}")
+    for bar in CONFIDENCE_BINS[1:-1]:
+        below = [r for r in named if r.confidence <= bar]
+        lost = sum(r.right and r.category == "single" for r in below)
+        wrong = sum(r.named_wrong for r in below)
+        left = sum(r.named_wrong for r in named) - wrong
+        print(f"  named only above {bar:g}: right single names lost {lost}, right names lost "
+              f"{sum(r.right for r in below)}, wrong names taken away {wrong}, "
+              f"wrong names left {left}/{len(results)} = {100 * left / len(results):.1f} %")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--since", type=int, default=8, help="pool the seeds from this one on (default 8)")
     parser.add_argument("--pair", nargs=2, metavar="RUN", help="two runs of the same cases: what differs")
     parser.add_argument("--outcomes", action="store_true", help="also what each kind of case was called, pooled")
+    parser.add_argument("--calibration", action="store_true",
+                        help="also how often a named effect was right by its confidence, pooled")
     args = parser.parse_args()
     if args.pair:
         pair(*args.pair)
@@ -120,6 +150,8 @@ def main() -> None:
         print(f"pooled single effects by {what}: " + ", ".join(cells))
     if args.outcomes:
         outcomes(pooled)
+    if args.calibration:
+        calibration(pooled)
 
 
 if __name__ == "__main__":
