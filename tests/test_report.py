@@ -451,6 +451,9 @@ def test_diagnosis_page_opens_with_its_verdict_and_lists_every_candidate(diagnos
         assert float(values["held-out RMS rel. frequency error (%)"]) == 100 * entry["heldout_freq_rms_rel_error"]
     # the residual figure's dots are the verdict's own fit, and the caption names it
     assert "the verdict's own effect, joint_stiffness_shift @ A, fitted" in visible_text(text)
+    # the rules as the decision applies them: the naming bar is the decision's own
+    from workbench.diagnose.decision import NAME_CONFIDENCE
+    assert f"more than {100 * NAME_CONFIDENCE:g} % of the weight" in " ".join(visible_text(text).split())
     check_units(text)
 
 

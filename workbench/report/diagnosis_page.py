@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL
+from workbench.diagnose.decision import EXPLAINED_LEVEL, GAP_LEVEL, NAME_CONFIDENCE
 from workbench.diagnose.verdict import Diagnosis
 from workbench.report.page import CSS
 from workbench.report.pieces import html_figure
@@ -321,10 +321,10 @@ fitted on exact eigen-solutions. Every test measures residuals against the measu
 model-form error a nominal model of a real structure carries ({_discrepancy_text(record)}). Verdict rules,
 channel by channel (frequency, damping): <code>none</code> when no channel's chi-square exceeds its
 {100 * (1 - GAP_LEVEL):g} % quantile; otherwise the best candidate on a channel with a gap, if its held-out
-chi-square is within its {100 * (1 - EXPLAINED_LEVEL):g} % quantile, it shrinks the held-out RMS error at all,
-its parameter is not at a bound of its range and its effect carries more than half the weight of
-all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the gap (neither at
-a bound, amplitude softening only where the levels differ); else
+chi-square is within its {100 * (1 - EXPLAINED_LEVEL):g} % quantile and below the nominal model's,
+its parameter is not at a bound of its range and its effect carries more than {100 * NAME_CONFIDENCE:g} % of
+the weight of all candidates (the confidence); two effects (<code>also</code>) when only a pair explains the
+gap (neither at a bound, amplitude softening only where the levels differ); else
 <code>unexplained</code> with the best partial explanation. See <code>workbench/diagnose/decision.py</code>.</p>
 </main></body></html>
 """
