@@ -484,7 +484,7 @@ def test_the_levels_move_a_named_effect_to_the_place_they_do_not_contradict():
     base = _frequency_fit("baseline", None, 600.0, 0.01)
     left = _frequency_fit("support_compliance", "base_left", 4.0, 1e-4)
     right = _frequency_fit("support_compliance", "base_right", 4.2, 1e-4)
-    mass = _frequency_fit("added_mass", "beam", 4.1, 1e-4)
+    mass = _frequency_fit("added_mass", "beam", 6.0, 1e-4)  # the support's weight 0.73 with it: named by its own
     modes, ones = np.arange(1, 7), np.ones(6)
     fits, mirrored = LevelTest(modes, ones, ones, 3.0, 40.0, 5), LevelTest(modes, ones, ones, 90.0, 40.0, 5)
     predictions = {c.key: off for c in (left, right, mass)}

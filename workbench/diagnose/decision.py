@@ -72,12 +72,10 @@ seed's run, never tuned on one):
    covariance the candidate's form error widens, `workbench.diagnose.observations.frequency_score`), summed
    over the places of that effect. An effect is named only above `NAME_CONFIDENCE`: two effects that
    predict the held-out modes equally well are not told apart, and the diagnosis says so (``partial``).
-   The bar was 0.5 (more likely than every other together) until seed 31. Read against the truth of the
-   validation seeds 19 to 31 (`python benchmarks/validation_rescore.py --since 19 --calibration`), a name
-   stated at 0.5 to 0.7 was right 32 times of 55 (58 %, no better than the even odds the bar states), one
-   above 0.7 at least 68 % of the time, above 0.99 94 to 96 %. Naming only above 0.7 would have taken 21
-   of the 115 wrong names of those 2600 cases away (4.4 % -> 3.6 %) for 25 of 1121 right single names;
-   0.8 would have taken 14 more for 29 more right ones. 0.7 was frozen before fresh seed 32.
+   The bar was 0.5 until seed 31. On validation seeds 19-31 (`python benchmarks/validation_rescore.py --since
+   19 --calibration`) a name stated at 0.5-0.7 was right 32 times of 55, one above 0.7 at least 68 % of the
+   time; 0.7 would have taken 21 of their 115 wrong names away for 25 of 1121 right single names, 0.8 14 more
+   for 29 more (`reports/diagnosis.md`, twenty-fourth section). 0.7 was frozen before fresh seed 32.
 4. **Two effects** (``also``): when no single candidate explains a frequency gap, the best pair
    (`workbench.diagnose.combined`) that does, each of its effects lowering the in-sample chi-square by
    `PAIR_EVIDENCE` or more, neither at a bound, and amplitude softening in a pair only where the levels differ
