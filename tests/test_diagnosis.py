@@ -566,6 +566,7 @@ def test_two_effects_that_predict_alike_are_not_told_apart():
     verdict = decide(obs, off, base, [a, b], predictions)
     assert verdict.confidence == pytest.approx(0.5) and verdict.effect == "unexplained"
     assert verdict.partial is not None and verdict.partial["effect"] == "added_mass"
+    assert verdict.partial["weight"] == pytest.approx(0.5)  # what kept it from a name
     # better, but not by enough: a weight 1 / (1 + exp(-0.75)) = 0.68 just under the bar is not named either
     b = fit("support_compliance", "base_left", 5.5, 1e-4)
     assert type_confidence([a, b], base, "added_mass") == pytest.approx(1 / (1 + np.exp(-0.75)))

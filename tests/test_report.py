@@ -473,6 +473,14 @@ def test_an_exact_candidate_is_never_worded_as_unexplained_zero(diagnosed, tmp_p
     text = visible_text(_diagnosis_page(record, refused, tmp_path / "refused"))
     assert "unexplained 0 %" not in text and "no candidate effect was accepted" in text
     assert "not accepted" in text and said in text
+    # withheld for want of weight (`decision._unexplained`): the page says how much it had and the bar
+    from workbench.diagnose.decision import NAME_CONFIDENCE
+    top = record["ranking"][0]
+    partial = {"effect": top["effect"], "where": top["where"], "shrinkage": 0.4, "at_bound": False, "weight": 0.62}
+    record = {**record, "verdict": {**record["verdict"], "partial": partial, "confidence": 0.38}}
+    text = " ".join(visible_text(_diagnosis_page(record, refused, tmp_path / "weight")).split())
+    assert (f"carries 62 % of the candidates' weight, under the {100 * NAME_CONFIDENCE:g} % a name needs"
+            in text)
 
 
 def test_a_damping_candidate_is_judged_on_its_damping_error(diagnosed, tmp_path):

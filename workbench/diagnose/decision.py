@@ -72,10 +72,8 @@ seed's run, never tuned on one):
    covariance the candidate's form error widens, `workbench.diagnose.observations.frequency_score`), summed
    over the places of that effect. An effect is named only above `NAME_CONFIDENCE`: two effects that
    predict the held-out modes equally well are not told apart, and the diagnosis says so (``partial``).
-   The bar was 0.5 until seed 31. On validation seeds 19-31 (`python benchmarks/validation_rescore.py --since
-   19 --calibration`) a name stated at 0.5-0.7 was right 32 times of 55, one above 0.7 at least 68 % of the
-   time; 0.7 would have taken 21 of their 115 wrong names away for 25 of 1121 right single names, 0.8 14 more
-   for 29 more (`reports/diagnosis.md`, twenty-fourth section). 0.7 was frozen before fresh seed 32.
+   The bar was 0.5 until seed 31: on seeds 19-31 a name stated at 0.5-0.7 was right 32 times of 55 (the table
+   `validation_rescore.py --calibration` prints, `reports/diagnosis.md`); 0.7 frozen before fresh seed 32.
 4. **Two effects** (``also``): when no single candidate explains a frequency gap, the best pair
    (`workbench.diagnose.combined`) that does, each of its effects lowering the in-sample chi-square by
    `PAIR_EVIDENCE` or more, neither at a bound, and amplitude softening in a pair only where the levels differ
@@ -476,9 +474,9 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
     """``unexplained`` with the best partial explanation: the best candidate of the channel with the larger gap.
 
     Its confidence: where that candidate fits but other effects predict as well, one minus its weight (how sure
-    no single effect can be named); where it fits at a bound of its range, the weight of that effect's
-    candidates at their bounds (how sure nothing within the ranges explains); else the probability that its
-    held-out misfit is beyond chance.
+    no single effect can be named; the weight in ``partial["weight"]``); where it fits at a bound of its range,
+    the weight of that effect's candidates at their bounds (how sure nothing within the ranges explains); else
+    the probability that its held-out misfit is beyond chance.
     """
     ranked = sorted(best.values(), key=lambda c: -gaps[c.channel]["chi2"] / gaps[c.channel]["threshold"])
     top = ranked[0] if ranked else None
@@ -494,6 +492,8 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
             same = _eligible(top.channel, ranking, g)
             if top.at_bound:  # the weight of that effect at its bounds: how sure nothing within the ranges explains
                 confidence = type_confidence(same, baseline, top.effect, at_bound_only=True)
-            else:  # how sure no single effect can be named
+            else:  # how sure no single effect can be named; the partial's own weight was under the bar
                 confidence = 1.0 - type_confidence(same, baseline, top.effect)
+                if partial is not None:
+                    partial["weight"] = 1.0 - confidence
     return Verdict(UNEXPLAINED, None, 0.0, confidence, None, partial=partial, gaps=gaps)

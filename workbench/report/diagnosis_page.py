@@ -235,8 +235,11 @@ def verdict_summary(record: dict, diagnosis: Diagnosis) -> list[tuple[str, str]]
         if partial:
             bound = (", its parameter at a bound of its range: the data ask for more of it than the range holds"
                      if partial.get("at_bound") else "")
+            weight = (f"; it explains the gap, but its effect carries {100 * partial['weight']:.0f} % of the "
+                      f"candidates' weight, under the {100 * NAME_CONFIDENCE:g} % a name needs: another effect "
+                      "predicts the held-out modes almost as well" if partial.get("weight") is not None else "")
             lines.append(("partial explanation", f"{partial['effect']} @ {partial.get('where')}, shrinkage "
-                          f"{100 * partial['shrinkage']:.1f} %{bound}"))
+                          f"{100 * partial['shrinkage']:.1f} %{bound}{weight}"))
     else:
         lines.append(("shrinkage", "nothing to shrink: no gap beyond the scatter"))
     frf_levels = v.get("frf_levels")
