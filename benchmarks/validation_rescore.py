@@ -23,6 +23,7 @@ from collections import Counter
 from pathlib import Path
 
 from workbench.proving.cases import FAINT, LEVELS, reached_level
+from workbench.rig.effects import NONE, UNEXPLAINED
 from workbench.workflow.proving_validation import ProvingResult, measurement_label, quantity_label, score, wilson
 
 REPO = Path(__file__).resolve().parents[1]
@@ -100,7 +101,7 @@ def calibration(results: list[ProvingResult]) -> None:
     ``unexplained``; a bar's cases would read ``unexplained`` (a rescoring, not a run: the pair the decision
     would then try is not).
     """
-    named = [r for r in results if r.verdict not in ("none", "unexplained")]
+    named = [r for r in results if r.verdict not in (NONE.name, UNEXPLAINED)]
     print(f"{len(named)} named of {len(results)} cases; right by stated confidence:")
     for lo, hi in zip(CONFIDENCE_BINS, CONFIDENCE_BINS[1:]):
         rows = [r for r in named if lo < r.confidence <= hi]

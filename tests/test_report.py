@@ -16,6 +16,7 @@ import pytest
 from conftest import REPO
 
 from workbench.cli import main
+from workbench.diagnose.decision import NAME_CONFIDENCE
 from workbench.io.campaign import Factor
 from workbench.model.frame_file import read_frame
 from workbench.report.page import SECTION_TITLES, render_report, report_files
@@ -452,7 +453,6 @@ def test_diagnosis_page_opens_with_its_verdict_and_lists_every_candidate(diagnos
     # the residual figure's dots are the verdict's own fit, and the caption names it
     assert "the verdict's own effect, joint_stiffness_shift @ A, fitted" in visible_text(text)
     # the rules as the decision applies them: the naming bar is the decision's own
-    from workbench.diagnose.decision import NAME_CONFIDENCE
     assert f"more than {100 * NAME_CONFIDENCE:g} % of the weight" in " ".join(visible_text(text).split())
     check_units(text)
 
@@ -474,7 +474,6 @@ def test_an_exact_candidate_is_never_worded_as_unexplained_zero(diagnosed, tmp_p
     assert "unexplained 0 %" not in text and "no candidate effect was accepted" in text
     assert "not accepted" in text and said in text
     # withheld for want of weight (`decision._unexplained`): the page says how much it had and the bar
-    from workbench.diagnose.decision import NAME_CONFIDENCE
     top = record["ranking"][0]
     partial = {"effect": top["effect"], "where": top["where"], "shrinkage": 0.4, "at_bound": False, "weight": 0.62}
     record = {**record, "verdict": {**record["verdict"], "partial": partial, "confidence": 0.38}}

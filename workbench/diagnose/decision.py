@@ -493,7 +493,7 @@ def _unexplained(best: dict[str, CandidateFit], baseline: CandidateFit, gaps: di
             if top.at_bound:  # the weight of that effect at its bounds: how sure nothing within the ranges explains
                 confidence = type_confidence(same, baseline, top.effect, at_bound_only=True)
             else:  # how sure no single effect can be named; the partial's own weight was under the bar
-                confidence = 1.0 - type_confidence(same, baseline, top.effect)
-                if partial is not None:
-                    partial["weight"] = 1.0 - confidence
+                weight = type_confidence(same, baseline, top.effect)
+                confidence = 1.0 - weight
+                partial = None if partial is None else {**partial, "weight": weight}
     return Verdict(UNEXPLAINED, None, 0.0, confidence, None, partial=partial, gaps=gaps)
