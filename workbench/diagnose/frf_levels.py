@@ -16,18 +16,26 @@ A candidate's level is the same scale of its own model's constants (the mode fol
 mode at a node, or paired with another) and modes whose level's standard error exceeds a tenth of it are left out.
 
 **The test.** The residual of mode ``i`` is ``r_i = log s_i - log c_i - kappa``, with ``kappa`` one scale
-common to every mode (a force gauge's calibration, the density's error: fitted, not an effect), and variance
+common to every mode (a force gauge's calibration, the density's error: fitted by generalised least squares,
+not an effect), and covariance
 
-    v_i = (se_i / s_i)^2 + LEVEL_FLOOR^2 + (FORM_SD log c_i)^2
+    V = diag((se_i / s_i)^2 + LEVEL_FLOOR^2 + (FORM_SD log c_i)^2) + L L^T
 
-the measurement, the as-built error of a nominal model's mode levels at the sensors (`LEVEL_FLOOR`, 2 %: the
-no-effect frames of the proving ground's development seeds stray from their nominal levels by 0.5 to 2 % a mode,
-a few by 3 to 5 %), and the candidate's form (`workbench.diagnose.observations.FORM_SD` of the change it
-predicts, as for the frequencies). ``chi2 = sum r_i^2 / v_i`` is read as chi-square with ``n - 1`` degrees of
-freedom. The candidate is contradicted when its p-value is below `LEVEL_ALPHA` *and* it fits the levels worse
-than the nominal model does: the levels then say that what moved the frequencies did not move them the
-candidate's way. A candidate that explains part of a level change, however imperfectly its form does (a point
-mass for a spread one), is not contradicted.
+the measurement, an unstructured floor (`LEVEL_FLOOR`, 2 %: the no-effect frames of the proving ground's
+development seeds stray from their nominal levels by 0.5 to 2 % a mode, a few by 3 to 5 %), the candidate's form
+(`workbench.diagnose.observations.FORM_SD` of the change it predicts, as for the frequencies), and the as-built
+frame (``L``, since seed 36): one column per toleranced member end's x and y and member's second moment and
+area (`workbench.diagnose.geometry.stepped_models`, the frequencies' own allowance), each mode's log level one
+stated sd along it, by forward differences on the nominal model. Two modes a few percent apart mix their shapes
+under a fraction of a millimetre, and a mode's level at the sensors moves by several percent where its frequency
+moves by a tenth of one: the few modes the floor did not cover (the "3 to 5 %") are those, and the floor alone
+read them as a contradiction (proving-ground seed 34, case 135: a stocky portal's Timoshenko shear, its levels
+at modes 4 and 7 5 to 7 % off the nominal, as its as-built article's own FEM gives them, named at 1.000 and
+taken away). ``chi2 = r^T (V^-1 - V^-1 1 1^T V^-1 / 1^T V^-1 1) r`` is read as chi-square with ``n - 1``
+degrees of freedom. The candidate is contradicted when its p-value is below `LEVEL_ALPHA` *and* it fits the
+levels worse than the nominal model does: the levels then say that what moved the frequencies did not move them
+the candidate's way. A candidate that explains part of a level change, however imperfectly its form does (a
+point mass for a spread one), is not contradicted.
 
 A stinger is not tested: where a shaker drives the structure through a stinger, the reference force may be
 measured at the armature, and the suspect is then the measurement chain the levels rely on.
@@ -43,6 +51,7 @@ right ones.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +59,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2 as chi2_law
 
 from workbench.diagnose.baseline import Baseline
+from workbench.diagnose.geometry import Stepped
 from workbench.diagnose.observations import FORM_SD
 from workbench.extraction.records import MeasuredModes
 from workbench.model.frame import Frame
@@ -62,8 +72,9 @@ __all__ = ["MIN_MAC", "LEVEL_FLOOR", "LEVEL_ALPHA", "MeasuredLevels", "LevelTest
            "LevelChannel", "measured_levels", "sensor_constants", "track", "level_test"]
 
 MIN_MAC = 0.5  # a measured mode whose MAC with its nominal model mode is below this is not compared
-MAX_SCATTER = 0.1  # nor one whose level's standard error exceeds this share of it (noise passes 0.5 in 6 % of draws)
-LEVEL_FLOOR = 0.02  # as-built error of a nominal mode's level (module docstring)
+# nor one whose level's standard error exceeds this share of it (noise passes 0.5 in 6 % of draws), nor its as-built sd
+MAX_SCATTER = 0.1
+LEVEL_FLOOR = 0.02  # unstructured error of a nominal mode's level (module docstring)
 LEVEL_ALPHA = 0.01  # p-value below which the levels contradict a candidate that fits them worse than no effect
 
 
@@ -180,13 +191,24 @@ def track(nominal: np.ndarray, nominal_hz: np.ndarray, changed: np.ndarray, chan
 
 
 def level_test(measured: MeasuredLevels, nominal: np.ndarray, candidate: np.ndarray,
-               modes: np.ndarray) -> LevelTest | None:
+               modes: np.ndarray, as_built: np.ndarray | None = None) -> LevelTest | None:
     """The level channel's test of a candidate whose constants are ``candidate`` (n_modes, n_sensors), 1/kg,
     against ``nominal``'s, for the measured modes labelled ``modes`` (module docstring); None with fewer than two
-    modes to compare.
+    modes to compare. ``as_built`` (n_columns, n_modes, n_sensors): the nominal model's constants one stated sd
+    along each toleranced column (`LevelChannel`), whose level changes widen the covariance; None: the floor
+    alone.
     """
     keep = (np.isfinite(measured.level) & (measured.mac >= MIN_MAC)
             & (measured.se < MAX_SCATTER * np.where(np.isfinite(measured.level), measured.level, np.inf)))
+    columns = np.zeros((nominal.shape[0], 0))
+    if as_built is not None and as_built.shape[0]:  # each mode's log level one stated sd along each column
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a0 = np.where(measured.seen, nominal, 0.0)
+            columns = np.log(np.abs(np.einsum("cij,ij->ci", np.where(measured.seen[None], as_built, 0.0), a0))
+                             / np.einsum("ij,ij->i", a0, a0)).T
+        # a mode the allowance alone moves by more than the scatter's bar cannot testify either (a mode a few
+        # percent from its neighbour, whose shapes the as-built frame mixes: the linear columns do not hold it)
+        keep &= np.all(np.isfinite(columns), axis=1) & (np.sqrt(np.sum(columns**2, axis=1)) < MAX_SCATTER)
     if keep.sum() < 2:
         return None
     seen = measured.seen[keep]  # each mode's prediction on the sensors its level was read on
@@ -196,12 +218,14 @@ def level_test(measured: MeasuredLevels, nominal: np.ndarray, candidate: np.ndar
         return None
     log_measured = np.log(measured.level[keep])
     noise = (measured.se[keep] / measured.level[keep]) ** 2 + LEVEL_FLOOR**2
+    columns = columns[keep]
 
     def chi2(log_predicted: np.ndarray) -> float:
-        weight = 1.0 / (noise + (FORM_SD * log_predicted) ** 2)
+        cov = np.diag(noise + (FORM_SD * log_predicted) ** 2) + columns @ columns.T
         r = log_measured - log_predicted
-        kappa = np.sum(weight * r) / np.sum(weight)  # the common scale, fitted
-        return float(np.sum(weight * (r - kappa) ** 2))
+        w_r, w_1 = np.linalg.solve(cov, np.stack([r, np.ones_like(r)], axis=1)).T
+        kappa = float(np.sum(w_r) / np.sum(w_1))  # the common scale, fitted (generalised least squares)
+        return float(r @ w_r - kappa * np.sum(w_r))
 
     return LevelTest(np.asarray(modes)[keep], measured.level[keep], predicted, chi2(np.log(predicted)),
                      chi2(np.zeros(int(keep.sum()))), int(keep.sum()) - 1)
@@ -214,8 +238,9 @@ class LevelChannel:
     constants at two or more of the model's sensors, or with fewer than two tests (no scatter to judge by).
     """
 
-    def __init__(self, base: Baseline, measured: MeasuredModes) -> None:
+    def __init__(self, base: Baseline, measured: MeasuredModes, stepped: Sequence[Stepped] = ()) -> None:
         self.base = base
+        self.as_built: np.ndarray | None = None
         self.available = False
         constants = measured.modal_constants
         frame = base.frame
@@ -227,12 +252,28 @@ class LevelChannel:
         if len(self.sensors) < 2 or constants.shape[2] != len(self.sensors) or not set(self.sensors) <= set(names):
             return
         self.count = base.count
-        self.nominal, self.nominal_hz = sensor_constants(base.frame, self.sensors, self.count)
+        # the baseline's own modes (its model solved for `Baseline.count` of them)
+        self.nominal = receptance_constants(base.model, base.modes.shapes, self.sensors)
+        self.nominal_hz = base.modes.frequency_hz
         self.levels = measured_levels(constants, self.nominal[base.pairing])
         if base.unpaired is not None:  # a mode the model does not have is compared with none of its modes
             self.levels.level[base.unpaired] = np.nan
         self.modes = np.asarray(measured.modes)
         self.available = bool(np.isfinite(self.levels.level).sum() >= 2)
+        if self.available and stepped:
+            self.as_built = self._as_built(stepped)
+
+    def _as_built(self, stepped: Sequence[Stepped]) -> np.ndarray:
+        """(n_columns, n_measured, n_sensors) the paired modes' constants of the nominal model moved one stated sd
+        along each toleranced column (`workbench.diagnose.geometry.stepped_models`), by forward differences in
+        the constants (linear: a step moves no mode past its neighbour).
+        """
+        out = []
+        for s in stepped:
+            constants = receptance_constants(s.model, s.modes.shapes, self.sensors)
+            followed = constants[track(self.nominal, self.nominal_hz, constants, s.modes.frequency_hz)]
+            out.append((self.nominal + (followed - self.nominal) * s.factor)[self.base.pairing])
+        return np.array(out) if out else np.zeros((0, self.base.pairing.size, len(self.sensors)))
 
     def test(self, effect: str, where: str | None, parameters: dict) -> LevelTest | None:
         """`level_test` of an effect of the registry at ``where`` with its fitted ``parameters``; None when the
@@ -247,4 +288,5 @@ class LevelChannel:
         constants, frequency_hz = sensor_constants(changed, self.sensors, self.count + 2)
         followed = track(self.nominal, self.nominal_hz, constants, frequency_hz)
         pairing = self.base.pairing
-        return level_test(self.levels, self.nominal[pairing], constants[followed[pairing]], self.modes)
+        return level_test(self.levels, self.nominal[pairing], constants[followed[pairing]], self.modes,
+                          self.as_built)

@@ -18,20 +18,71 @@ to the modes with the structure the per-mode floor lacks: the modes of one membe
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import replace
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD
+from workbench.diagnose.observations import AREA_SD, GEOMETRY_SD, SECOND_MOMENT_SD, Allowance
 from workbench.model.frame import Frame, member_ends, moved_frame
-from workbench.model.structure import structure_modes, structure_of
+from workbench.model.modal import Modes
+from workbench.model.structure import Structure, structure_modes, structure_of
 
-__all__ = ["STEP_M", "STEP_RELATIVE", "geometry_columns", "section_columns", "column_names"]
+__all__ = ["STEP_M", "STEP_RELATIVE", "Stepped", "stepped_models", "tolerance_columns", "geometry_columns",
+           "section_columns", "column_names"]
 
 STEP_M = 1e-4  # m, the forward difference's step: the change is linear over it to 1e-3 of itself
 STEP_RELATIVE = 1e-4  # a section property's relative forward-difference step
+
+
+@dataclass(frozen=True)
+class Stepped:
+    """The nominal model stepped along one toleranced column, solved once for every channel that reads it (the
+    frequencies' columns here, the FRF levels' as-built error in `workbench.diagnose.frf_levels`).
+
+    Attributes
+    ----------
+    name : the column (``<point>.x``, ``<member>.second_moment``, ...). kind : ``geometry`` or ``section``.
+    factor : one stated sd over the step (scales a forward difference to one sd).
+    model, modes : the stepped model and its first ``Baseline.count`` modes.
+    """
+
+    name: str
+    kind: str
+    factor: float
+    model: Structure
+    modes: Modes
+
+
+def stepped_models(base: Baseline, allowance: Allowance) -> list[Stepped]:
+    """The nominal model stepped along each toleranced column of ``allowance``, geometry first (the order of
+    `column_names`); none for a matrix model (no geometry) or a tolerance of 0.
+    """
+    if not isinstance(base.frame, Frame):
+        return []
+    frame, (second_moment_sd, area_sd) = base.frame, allowance.section_sd
+    steps = ([(name, moved, "geometry", allowance.geometry_sd_m / STEP_M) for name, moved in _geometry_steps(frame)]
+             if allowance.geometry_sd_m > 0 else [])
+    steps += [(name, moved, "section", sd / STEP_RELATIVE)
+              for name, moved, sd in _section_steps(frame, second_moment_sd, area_sd)]
+    out = []
+    for name, moved, kind, factor in steps:
+        model = structure_of(moved)
+        out.append(Stepped(name, kind, factor, model, structure_modes(model, base.count)))
+    return out
+
+
+def tolerance_columns(base: Baseline, stepped: Sequence[Stepped]) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The frequencies' geometry columns (n_measured, 2 n_ends) and section columns (n_measured, k): each measured
+    mode's relative frequency change per stated sd of each column of ``stepped``; None for a kind without
+    columns.
+    """
+    def of(kind: str) -> np.ndarray | None:
+        rows = [_change(base, s.modes.frequency_hz) * s.factor for s in stepped if s.kind == kind]
+        return np.array(rows).T if rows else None
+
+    return of("geometry"), of("section")
 
 
 def geometry_columns(base: Baseline, sd_m: float = GEOMETRY_SD) -> np.ndarray | None:
@@ -42,9 +93,7 @@ def geometry_columns(base: Baseline, sd_m: float = GEOMETRY_SD) -> np.ndarray | 
     Each moved model's modes are paired with the baseline's paired modes by the nearest frequency in ratio
     (`_change`).
     """
-    if not isinstance(base.frame, Frame) or sd_m <= 0:
-        return None
-    return np.array([_change(base, moved) * (sd_m / STEP_M) for _, moved in _geometry_steps(base.frame)]).T
+    return tolerance_columns(base, stepped_models(base, Allowance(sd_m, (0.0, 0.0))))[0]
 
 
 def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
@@ -57,10 +106,7 @@ def section_columns(base: Baseline, second_moment_sd: float = SECOND_MOMENT_SD,
     A member gets its own copy of its section (``<section>@<member>``), so that members sharing a section in
     the file are toleranced independently; the area's step scales the member's mass and axial stiffness alike.
     """
-    if not isinstance(base.frame, Frame) or (second_moment_sd <= 0 and area_sd <= 0):
-        return None
-    return np.array([_change(base, moved) * (sd / STEP_RELATIVE)
-                     for _, moved, sd in _section_steps(base.frame, second_moment_sd, area_sd)]).T
+    return tolerance_columns(base, stepped_models(base, Allowance(0.0, (second_moment_sd, area_sd))))[1]
 
 
 def column_names(frame: Frame, second_moment_sd: float = SECOND_MOMENT_SD,
@@ -98,12 +144,11 @@ def _section_steps(frame: Frame, second_moment_sd: float, area_sd: float) -> Ite
                                                      members=tuple(members)), sd)
 
 
-def _change(base: Baseline, moved: Frame) -> np.ndarray:
-    """(n_measured,) relative change of the baseline's paired modes in ``moved``: each paired with the moved
-    model's nearest mode in ratio (a small step moves no mode past its neighbour but in a pair closer than
-    1e-3, where the two are one mode to the pairing anyway).
+def _change(base: Baseline, f: np.ndarray) -> np.ndarray:
+    """(n_measured,) relative change of the baseline's paired modes in a stepped model of frequencies ``f``
+    (Hz): each paired with its nearest mode in ratio (a small step moves no mode past its neighbour but in a
+    pair closer than 1e-3, where the two are one mode to the pairing anyway).
     """
     f0 = base.modes.frequency_hz[base.pairing]
-    f = structure_modes(structure_of(moved), base.count).frequency_hz
     nearest = f[np.argmin(np.abs(np.log(f[None, :] / f0[:, None])), axis=1)]
     return nearest / f0 - 1.0

@@ -49,7 +49,7 @@ from workbench.diagnose.curves import Curve
 from workbench.diagnose.decision import damping_family, decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.frf_levels import LevelChannel, LevelTest
-from workbench.diagnose.geometry import column_names, geometry_columns, section_columns
+from workbench.diagnose.geometry import column_names, stepped_models, tolerance_columns
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import (
@@ -266,11 +266,12 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
         gone = base.unpaired[None, :]
         obs = replace(obs, frequency_hz=np.where(gone, np.nan, obs.frequency_hz),
                       damping=None if obs.damping is None else np.where(gone, np.nan, obs.damping))
+    stepped = stepped_models(base, allowance)  # the toleranced columns' models, solved once for both channels
     if isinstance(frame, Frame):  # the frame's member ends and sections known to the allowance (observations.py)
         names = column_names(frame, *allowance.section_sd)
+        geometry, sections = tolerance_columns(base, stepped)
         obs = replace(obs, discrepancy=replace(
-            obs.discrepancy, geometry=geometry_columns(base, allowance.geometry_sd_m),
-            sections=section_columns(base, *allowance.section_sd), allowance=allowance,
+            obs.discrepancy, geometry=geometry, sections=sections, allowance=allowance,
             geometry_names=names[0], section_names=names[1]))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
@@ -294,7 +295,7 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
     null = frequency_null(obs, ranking, groups)
     damping_null = None if obs.damping is None else damping_family(  # the damping candidates' columns, as fitted
         obs, [share for _, _, share, _ in _damping_candidates(obs, base.frame.joint_names, shares[0])])
-    channel = LevelChannel(base, measured)
+    channel = LevelChannel(base, measured, stepped)
 
     def frf_levels(fit: CandidateFit) -> LevelTest | None:
         return channel.test(fit.effect, fit.where, fit.parameters)
