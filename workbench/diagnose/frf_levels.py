@@ -13,7 +13,8 @@ model's constants of the paired mode at the same sensors (least squares): ``s = 
 mode's level is the mean over the tests, its standard error their scatter over the square root of their number.
 A candidate's level is the same scale of its own model's constants (the mode followed through the change,
 `track`) onto the nominal's. Modes the nominal model does not recognise at the sensors (MAC below `MIN_MAC`: a
-mode at a node, or paired with another) and modes whose level's standard error exceeds a tenth of it are left out.
+mode at a node, or paired with another), modes whose level's standard error exceeds a tenth of it, and modes whose
+level the frame's allowance alone moves by more than a tenth (below) are left out.
 
 **The test.** The residual of mode ``i`` is ``r_i = log s_i - log c_i - kappa``, with ``kappa`` one scale
 common to every mode (a force gauge's calibration, the density's error: fitted by generalised least squares,
