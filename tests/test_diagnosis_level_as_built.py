@@ -17,7 +17,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_law
 
 from workbench.diagnose.baseline import Baseline
-from workbench.diagnose.frf_levels import LEVEL_ALPHA, MeasuredLevels, level_test, track
+from workbench.diagnose.frf_levels import LEVEL_ALPHA, MeasuredLevels, as_built_constants, level_test, track
 from workbench.diagnose.geometry import stepped_models
 from workbench.diagnose.observations import DEFAULT_ALLOWANCE
 from workbench.model.structure import receptance_constants, response_dofs, structure_modes, structure_of
@@ -45,11 +45,8 @@ def test_an_as_built_frame_within_the_allowance_does_not_contradict_its_nominal_
     sensors = tuple(response_dofs(model)[2])
     nominal = receptance_constants(model, modes.shapes, sensors)
     base = Baseline(frame, model, modes, np.arange(MODES), np.ones(MODES + 3), MODES + 3)
-    as_built = []
-    for s in stepped_models(base, DEFAULT_ALLOWANCE):  # as `LevelChannel` forms them
-        c = receptance_constants(s.model, s.modes.shapes, sensors)
-        followed = c[track(nominal, modes.frequency_hz, c, s.modes.frequency_hz)]
-        as_built.append((nominal + (followed - nominal) * s.factor)[:MODES])
+    as_built = as_built_constants(nominal, modes.frequency_hz, sensors, stepped_models(base, DEFAULT_ALLOWANCE))
+    as_built = as_built[:, :MODES]
     rng = np.random.default_rng(1)
     with_columns, floor_only = [], []
     for _ in range(20):
@@ -60,7 +57,7 @@ def test_an_as_built_frame_within_the_allowance_does_not_contradict_its_nominal_
         a0 = nominal[:MODES]
         level = np.abs(np.einsum("ij,ij->i", constants, a0)) / np.einsum("ij,ij->i", a0, a0)
         measured = MeasuredLevels(level, np.full(MODES, 1e-3), np.ones(MODES), np.ones((MODES, len(sensors)), bool))
-        for out, columns in ((with_columns, np.array(as_built)), (floor_only, None)):
+        for out, columns in ((with_columns, as_built), (floor_only, None)):
             test = level_test(measured, a0, a0, np.arange(1, MODES + 1), columns)
             assert test is not None
             out.append(test.nominal_chi2)

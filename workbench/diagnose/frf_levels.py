@@ -70,7 +70,7 @@ from workbench.model.structure import receptance_constants, response_dofs, struc
 from workbench.rig.effects import EFFECTS, STINGER_STIFFNESS, apply_effect
 
 __all__ = ["MIN_MAC", "LEVEL_FLOOR", "LEVEL_ALPHA", "MeasuredLevels", "LevelTest",
-           "LevelChannel", "measured_levels", "sensor_constants", "track", "level_test"]
+           "LevelChannel", "measured_levels", "sensor_constants", "track", "level_test", "as_built_constants"]
 
 MIN_MAC = 0.5  # a measured mode whose MAC with its nominal model mode is below this is not compared
 # nor one whose level's standard error exceeds this share of it (noise passes 0.5 in 6 % of draws), nor its as-built sd
@@ -232,6 +232,21 @@ def level_test(measured: MeasuredLevels, nominal: np.ndarray, candidate: np.ndar
                      chi2(np.zeros(int(keep.sum()))), int(keep.sum()) - 1)
 
 
+def as_built_constants(nominal: np.ndarray, nominal_hz: np.ndarray, sensors: Sequence[str],
+                       stepped: Sequence[Stepped]) -> np.ndarray:
+    """(n_columns, n_modes, n_sensors) the constants of the nominal model's modes (``nominal`` (n_modes,
+    n_sensors), 1/kg, at ``nominal_hz``) one stated sd along each toleranced column of ``stepped``
+    (`workbench.diagnose.geometry.stepped_models`), by forward differences in the constants (linear: a step
+    moves no mode past its neighbour); `level_test`'s ``as_built``.
+    """
+    out = []
+    for s in stepped:
+        constants = receptance_constants(s.model, s.modes.shapes, sensors)
+        followed = constants[track(nominal, nominal_hz, constants, s.modes.frequency_hz)]
+        out.append(nominal + (followed - nominal) * s.factor)
+    return np.array(out) if out else np.zeros((0, *nominal.shape))
+
+
 class LevelChannel:
     """The level channel of one diagnosis: the campaign's levels and the nominal model's constants, solved once.
 
@@ -262,19 +277,7 @@ class LevelChannel:
         self.modes = np.asarray(measured.modes)
         self.available = bool(np.isfinite(self.levels.level).sum() >= 2)
         if self.available and stepped:
-            self.as_built = self._as_built(stepped)
-
-    def _as_built(self, stepped: Sequence[Stepped]) -> np.ndarray:
-        """(n_columns, n_measured, n_sensors) the paired modes' constants of the nominal model moved one stated sd
-        along each toleranced column (`workbench.diagnose.geometry.stepped_models`), by forward differences in
-        the constants (linear: a step moves no mode past its neighbour).
-        """
-        out = []
-        for s in stepped:
-            constants = receptance_constants(s.model, s.modes.shapes, self.sensors)
-            followed = constants[track(self.nominal, self.nominal_hz, constants, s.modes.frequency_hz)]
-            out.append((self.nominal + (followed - self.nominal) * s.factor)[self.base.pairing])
-        return np.array(out) if out else np.zeros((0, self.base.pairing.size, len(self.sensors)))
+            self.as_built = as_built_constants(self.nominal, self.nominal_hz, self.sensors, stepped)[:, base.pairing]
 
     def test(self, effect: str, where: str | None, parameters: dict) -> LevelTest | None:
         """`level_test` of an effect of the registry at ``where`` with its fitted ``parameters``; None when the

@@ -49,7 +49,7 @@ from workbench.diagnose.curves import Curve
 from workbench.diagnose.decision import damping_family, decide, frequency_null
 from workbench.diagnose.fitting import CandidateFit, Frequencies, damping_fit, evaluate
 from workbench.diagnose.frf_levels import LevelChannel, LevelTest
-from workbench.diagnose.geometry import column_names, stepped_models, tolerance_columns
+from workbench.diagnose.geometry import stepped_models, tolerance_columns
 from workbench.diagnose.localise import Region, energy_shares, localise
 from workbench.diagnose.matrix_candidates import matrix_curves
 from workbench.diagnose.observations import (
@@ -268,11 +268,11 @@ def _diagnose(frame: Frame | MatrixModel, measured: MeasuredModes, say: Callable
                       damping=None if obs.damping is None else np.where(gone, np.nan, obs.damping))
     stepped = stepped_models(base, allowance)  # the toleranced columns' models, solved once for both channels
     if isinstance(frame, Frame):  # the frame's member ends and sections known to the allowance (observations.py)
-        names = column_names(frame, *allowance.section_sd)
         geometry, sections = tolerance_columns(base, stepped)
         obs = replace(obs, discrepancy=replace(
             obs.discrepancy, geometry=geometry, sections=sections, allowance=allowance,
-            geometry_names=names[0], section_names=names[1]))
+            geometry_names=tuple(s.name for s in stepped if s.kind == "geometry"),
+            section_names=tuple(s.name for s in stepped if s.kind == "section")))
     baseline_hz = np.broadcast_to(base.frequency(base.modes.frequency_hz), obs.frequency_hz.shape).copy()
     residual = (obs.frequency_hz / baseline_hz - 1.0).mean(axis=0)
     weight = 1.0 / np.nanmean((obs.frequency_se / obs.frequency_hz) ** 2, axis=0)
